@@ -1,0 +1,1 @@
+"""Brake actuators: shoe friction, lag + delay, EP blending."""

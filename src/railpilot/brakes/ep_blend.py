@@ -1,0 +1,167 @@
+"""Electro-pneumatic blended brake of a metro train (paper 000 section 1.1).
+
+Signal path, per control step::
+
+    ATO demand F_req [N]
+      -> input delay (exact buffer, paper Table 1: 0.3 s)
+      -> jerk limit on the demand (rate limit, N/s)
+      -> brake manager: electric first, up to its speed-dependent limit
+           E_cmd = min(F_cmd, E_max(v) * cars_in / cars, fade envelope)
+         traction units deliver E with a first-order lag (electric_lag_s)
+      -> air makes up what electric actually delivers short of the demand
+           A_cmd = F_cmd - E   (the gateway valve reads applied electric from TCMS)
+         brake cylinder: first-order lag (paper eq. 4, T = 0.65 s)
+         shoe force = A * g(v), g = mu(v)/mu0 (paper eq. 3, 5)
+
+Below the changeover speed (6 km/h) the electric brake fades out at
+``fade_rate_n_per_s``; since air fills the gap to the demand, it ramps in at the same
+rate, behind its own lag. A slide cut-out removes one motor car's share of electric
+brake at once at ``cutout_time_s``; air takes it over through the same path.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from railpilot.brakes.friction import BETA1, BETA2, BETA3
+from railpilot.errors import ConfigError
+from railpilot.units import KMH_PER_MPS
+
+(P_DELAY_N, P_JERK_RATE, P_E_FMAX, P_E_PMAX, P_CARS, P_CUT_CARS, P_CUT_T, P_V_CO, P_FADE,
+ P_ALPHA_E, P_ALPHA_A, P_B1, P_B2, P_B3, P_BUF_LEN) = range(15)
+N_PARAMS = 15
+S_K, S_FCMD, S_E, S_A, S_ENV, S_FADING = range(6)
+N_STATE = 6
+
+
+@dataclass(frozen=True)
+class EPBrake:
+    """Parameters of the blended brake.
+
+    Attributes
+    ----------
+    delay_s
+        Input delay of the brake system [s] (paper Table 1: 0.3 s); a whole number of
+        simulation steps.
+    air_lag_s
+        Brake cylinder time constant ``T`` [s] (paper Table 1: 0.65 s).
+    electric_lag_s
+        Traction units' electric brake time constant [s]. Not in the paper; 0.3 s.
+    jerk_limit_mps3
+        Rate limit on the demand, as deceleration rate [m/s^3] of the nominal train.
+    changeover_kmh
+        Electric/air changeover speed [km/h] (paper: 6).
+    fade_rate_n_per_s
+        Rate the electric brake fades out (and air ramps in) below changeover [N/s].
+    cutout_cars, cutout_time_s
+        Motor cars whose electric brake is cut (slide) and when [s]; 0 cars = none.
+    beta1, beta2, beta3
+        Shoe friction coefficients of eq. 3.
+    """
+
+    delay_s: float = 0.3
+    air_lag_s: float = 0.65
+    electric_lag_s: float = 0.3
+    jerk_limit_mps3: float = 0.75
+    changeover_kmh: float = 6.0
+    fade_rate_n_per_s: float = 300e3
+    cutout_cars: int = 0
+    cutout_time_s: float = 0.0
+    beta1: float = BETA1
+    beta2: float = BETA2
+    beta3: float = BETA3
+
+    def __post_init__(self) -> None:
+        for name in ("delay_s", "air_lag_s", "electric_lag_s", "changeover_kmh", "cutout_time_s",
+                     "beta1", "beta2"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ConfigError(f"brake.{name}", value, "a finite number >= 0")
+        for name in ("jerk_limit_mps3", "fade_rate_n_per_s", "beta3"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0):
+                raise ConfigError(f"brake.{name}", value, "a finite number > 0")
+        if not (isinstance(self.cutout_cars, int) and self.cutout_cars >= 0):
+            raise ConfigError("brake.cutout_cars", self.cutout_cars, "an integer >= 0")
+
+    def pack(self, dt: float, effective_mass_kg: float, max_force_n: float, max_power_w: float,
+             motor_cars: int) -> np.ndarray:
+        """The kernel's parameter array for step ``dt`` [s] and the brake manager's mass."""
+        steps = self.delay_s / dt
+        n = int(round(steps))
+        if abs(steps - n) > 1e-6:
+            raise ConfigError("brake.delay_s", self.delay_s,
+                              f"a whole number of simulation steps (dt = {dt} s)")
+        if self.cutout_cars > motor_cars:
+            raise ConfigError("brake.cutout_cars", self.cutout_cars,
+                              f"at most train.motor_cars = {motor_cars}")
+        p = np.zeros(N_PARAMS)
+        p[P_DELAY_N] = n
+        p[P_JERK_RATE] = self.jerk_limit_mps3 * effective_mass_kg
+        p[P_E_FMAX] = max_force_n
+        p[P_E_PMAX] = max_power_w
+        p[P_CARS] = motor_cars
+        p[P_CUT_CARS] = self.cutout_cars
+        p[P_CUT_T] = self.cutout_time_s
+        p[P_V_CO] = self.changeover_kmh / KMH_PER_MPS
+        p[P_FADE] = self.fade_rate_n_per_s
+        p[P_ALPHA_E] = np.exp(-dt / self.electric_lag_s) if self.electric_lag_s > 0 else 0.0
+        p[P_ALPHA_A] = np.exp(-dt / self.air_lag_s) if self.air_lag_s > 0 else 0.0
+        p[P_B1] = self.beta1
+        p[P_B2] = self.beta2
+        p[P_B3] = self.beta3
+        p[P_BUF_LEN] = n + 1
+        return p
+
+
+@njit(cache=True)
+def ep_brake_step(p: np.ndarray, state: np.ndarray, buffer: np.ndarray, demand_n: float,
+                  speed_mps: float, t: float, dt: float) -> tuple[float, float]:
+    """Advance the blended brake one step; return (electric [N], air shoe force [N]).
+
+    ``state = [k, F_cmd, E, A, fade envelope, fading flag]``; ``buffer`` has
+    ``delay steps + 1`` slots.
+    """
+    length = int(p[P_BUF_LEN])
+    k = int(state[S_K])
+    buffer[k % length] = demand_n
+    delayed = buffer[(k - int(p[P_DELAY_N])) % length]
+    state[S_K] = k + 1
+
+    # jerk limit: the demand the brake manager acts on moves at a bounded rate
+    step = p[P_JERK_RATE] * dt
+    f_cmd = state[S_FCMD]
+    if delayed > f_cmd + step:
+        f_cmd += step
+    elif delayed < f_cmd - step:
+        f_cmd -= step
+    else:
+        f_cmd = delayed
+    state[S_FCMD] = f_cmd
+
+    v = max(speed_mps, 1e-9)
+    cars_in = p[P_CARS]
+    if t >= p[P_CUT_T]:
+        cars_in -= p[P_CUT_CARS]
+    e_avail = min(p[P_E_FMAX], p[P_E_PMAX] / v) * cars_in / p[P_CARS]
+    if speed_mps <= p[P_V_CO]:
+        if state[S_FADING] < 0.5:
+            state[S_FADING] = 1.0
+            state[S_ENV] = state[S_E]
+        state[S_ENV] = max(state[S_ENV] - p[P_FADE] * dt, 0.0)
+        e_avail = min(e_avail, state[S_ENV])
+    e_cmd = min(f_cmd, e_avail)
+    # traction follows its command with a lag, but never above what is available:
+    # a cut-out removes a car's share at once and the fade ramps out at its own rate
+    e = min(e_cmd + (state[S_E] - e_cmd) * p[P_ALPHA_E], e_avail)
+    state[S_E] = e
+
+    a_cmd = max(f_cmd - e, 0.0)
+    a = a_cmd + (state[S_A] - a_cmd) * p[P_ALPHA_A]
+    state[S_A] = a
+    v_kmh = speed_mps * 3.6
+    g = (p[P_B1] * np.exp(-p[P_B2] * v_kmh) + p[P_B3]) / p[P_B3]
+    return e, a * g

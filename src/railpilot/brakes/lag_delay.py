@@ -1,0 +1,219 @@
+"""First-order lag plus transport delay: ``Y(s)/U(s) = exp(-delay s) / (lag s + 1)``.
+
+Paper 000 eq. 4 (brake cylinder pressure) and paper 002 eq. 1 (brake system).
+
+Two discretisations of one model, both for a command held constant over each step
+(zero-order hold, as a digital controller delivers it):
+
+``exact``
+    A ring buffer holds past commands, so the delay is exact. A delay that is not a
+    whole number of steps is exact too: within a step the delayed command switches
+    from one held value to the next at the fraction ``f`` of the step, and the lag is
+    advanced exactly over each part (``exp(-h/lag)``).
+``pade``
+    The delay is replaced by its Pade approximant of the chosen order (what paper 002
+    does for its design model), the resulting rational transfer function is realised
+    in state space and discretised by zero-order hold. It is a model error against
+    ``exact``; :func:`pade_difference` measures it.
+"""
+
+from __future__ import annotations
+
+from math import factorial
+from typing import Literal
+
+import numpy as np
+from numba import njit
+from scipy.linalg import expm
+
+from railpilot.errors import ConfigError
+
+# params layout of the exact kernel
+E_ALPHA_F, E_ALPHA_REST, E_N, E_FRAC, E_LEN = range(5)
+
+
+def pade_coefficients(delay_s: float, order: int) -> tuple[np.ndarray, np.ndarray]:
+    """Numerator and denominator of the ``order``-th Pade approximant of ``exp(-delay s)``.
+
+    Coefficients in descending powers of ``s`` (numpy.polyval order). From
+    ``N(s) = sum_k (-1)^k c_k (delay s)^k``, ``D(s) = sum_k c_k (delay s)^k`` with
+    ``c_k = (2n-k)! n! / ((2n)! k! (n-k)!)``; normalised so the leading denominator
+    coefficient is 1 (as python-control's ``pade`` returns it).
+    """
+    if order < 1:
+        raise ConfigError("pade_order", order, "an integer >= 1")
+    n = order
+    c = [factorial(2 * n - k) * factorial(n) / (factorial(2 * n) * factorial(k) * factorial(n - k))
+         for k in range(n + 1)]
+    num = np.array([(-1) ** k * c[k] * delay_s**k for k in range(n + 1)])[::-1]
+    den = np.array([c[k] * delay_s**k for k in range(n + 1)])[::-1]
+    return num / den[0], den / den[0]
+
+
+def _state_space(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Controllable canonical realisation of a proper ``num/den`` (den monic)."""
+    n = len(den) - 1
+    num = np.concatenate([np.zeros(len(den) - len(num)), num])
+    d = num[0]
+    b = num[1:] - d * den[1:]
+    a_mat = np.zeros((n, n))
+    a_mat[0, :] = -den[1:]
+    if n > 1:
+        a_mat[1:, :-1] = np.eye(n - 1)
+    b_vec = np.zeros(n)
+    b_vec[0] = 1.0
+    return a_mat, b_vec, b.copy(), np.array(d)
+
+
+@njit(cache=True)
+def lag_delay_exact_step(params: np.ndarray, state: np.ndarray, buffer: np.ndarray,
+                         command: float) -> float:
+    """Advance the exact model one step with ``command`` held; return the new output.
+
+    ``state = [output, step_index]``; ``buffer`` has ``n + 2`` slots of past commands.
+    """
+    length = int(params[E_LEN])
+    n = int(params[E_N])
+    k = int(state[1])
+    buffer[k % length] = command
+    current = buffer[(k - n) % length]
+    previous = buffer[(k - n - 1) % length]
+    y = state[0]
+    if params[E_FRAC] > 0.0:
+        # first the part of the step where the older command is still arriving
+        y = previous + (y - previous) * params[E_ALPHA_F]
+    y = current + (y - current) * params[E_ALPHA_REST]
+    state[0] = y
+    state[1] = k + 1
+    return y
+
+
+@njit(cache=True)
+def lti_step(a_d: np.ndarray, b_d: np.ndarray, c: np.ndarray, d: float, x: np.ndarray,
+             command: float) -> float:
+    """``x <- A_d x + B_d u``; return ``C x + D u`` (discrete state space, in place)."""
+    x[:] = a_d @ x + b_d * command
+    return float(c @ x + d * command)
+
+
+class LagDelay:
+    """First-order lag [s] plus transport delay [s], stepped at a fixed ``dt`` [s].
+
+    Parameters
+    ----------
+    lag_s
+        Time constant ``T`` [s] (0 = pure delay).
+    delay_s
+        Transport delay [s] (0 = pure lag).
+    dt
+        Step [s].
+    method
+        ``"exact"`` (ring buffer, default) or ``"pade"``.
+    pade_order
+        Order of the Pade approximant for ``method="pade"``.
+    initial
+        Output and past commands before the first step (steady state).
+    """
+
+    def __init__(self, lag_s: float, delay_s: float, dt: float,
+                 method: Literal["exact", "pade"] = "exact", pade_order: int = 1,
+                 initial: float = 0.0) -> None:
+        for name, value in (("lag_s", lag_s), ("delay_s", delay_s)):
+            if not (np.isfinite(value) and value >= 0):
+                raise ConfigError(name, value, "a finite number >= 0 [s]")
+        if not (np.isfinite(dt) and dt > 0):
+            raise ConfigError("dt", dt, "a finite number > 0 [s]")
+        if method not in ("exact", "pade"):
+            raise ConfigError("method", method, "'exact' or 'pade'")
+        self.lag_s = float(lag_s)
+        self.delay_s = float(delay_s)
+        self.dt = float(dt)
+        self.method = method
+        self.pade_order = int(pade_order)
+        self.initial = float(initial)
+        if method == "exact":
+            steps = self.delay_s / self.dt
+            n = int(np.floor(steps + 1e-9))
+            frac = max(steps - n, 0.0) if abs(steps - round(steps)) > 1e-9 else 0.0
+            self.params = np.zeros(5)
+            self.params[E_N] = n
+            self.params[E_FRAC] = frac
+            self.params[E_LEN] = n + 2
+            self.params[E_ALPHA_F] = _decay(frac * self.dt, self.lag_s)
+            self.params[E_ALPHA_REST] = _decay((1.0 - frac) * self.dt, self.lag_s)
+        else:
+            self._build_pade()
+        self.reset()
+
+    def _build_pade(self) -> None:
+        if self.delay_s > 0:
+            num, den = pade_coefficients(self.delay_s, self.pade_order)
+        else:
+            num, den = np.array([1.0]), np.array([1.0])
+        if self.lag_s > 0:
+            den = np.polymul(den, np.array([1.0, 1.0 / self.lag_s]))
+            num = num / self.lag_s
+        a_c, b_c, c, d = _state_space(num, den)
+        n = len(b_c)
+        if n == 0:  # pure gain
+            self._ad, self._bd = np.zeros((0, 0)), np.zeros(0)
+        else:
+            # zero-order-hold discretisation via the augmented matrix exponential
+            aug = np.zeros((n + 1, n + 1))
+            aug[:n, :n] = a_c
+            aug[:n, n] = b_c
+            phi = expm(aug * self.dt)
+            self._ad, self._bd = phi[:n, :n].copy(), phi[:n, n].copy()
+        self._c, self._d = c, float(d)
+        self._a_c, self._b_c = a_c, b_c
+
+    def reset(self) -> None:
+        """Back to steady state at ``initial``."""
+        if self.method == "exact":
+            self.state = np.array([self.initial, 0.0])
+            self.buffer = np.full(int(self.params[E_LEN]), self.initial)
+        else:
+            n = len(self._bd)
+            # steady state x = -A^-1 B u for the initial command
+            if n and self.initial != 0.0:
+                self.x = -np.linalg.solve(self._a_c, self._b_c * self.initial)
+            else:
+                self.x = np.zeros(n)
+
+    def step(self, command: float) -> float:
+        """Hold ``command`` for one step; return the output at the end of the step."""
+        if self.method == "exact":
+            return float(lag_delay_exact_step(self.params, self.state, self.buffer,
+                                              float(command)))
+        return lti_step(self._ad, self._bd, self._c, self._d, self.x, float(command))
+
+    def response(self, commands: np.ndarray) -> np.ndarray:
+        """Outputs at the end of each step for a sequence of held commands."""
+        return np.array([self.step(u) for u in np.asarray(commands, dtype=float)])
+
+
+def _decay(h: float, lag_s: float) -> float:
+    """``exp(-h / lag)``: how much of the old output survives ``h`` seconds."""
+    if lag_s == 0.0:
+        return 0.0
+    return float(np.exp(-h / lag_s))
+
+
+def step_response_analytic(t: np.ndarray, lag_s: float, delay_s: float) -> np.ndarray:
+    """Unit step response ``1 - exp(-(t - delay)/lag)`` for ``t >= delay``, else 0."""
+    t = np.asarray(t, dtype=float)
+    shifted = np.maximum(t - delay_s, 0.0)
+    if lag_s == 0.0:
+        return (t >= delay_s).astype(float)
+    return np.where(t >= delay_s, 1.0 - np.exp(-shifted / lag_s), 0.0)
+
+
+def pade_difference(lag_s: float, delay_s: float, dt: float, order: int,
+                    duration_s: float | None = None) -> float:
+    """Largest difference [fraction of the step] between the exact and Pade step responses."""
+    duration = duration_s if duration_s is not None else 10.0 * (lag_s + delay_s) + dt
+    n = int(np.ceil(duration / dt))
+    u = np.ones(n)
+    exact = LagDelay(lag_s, delay_s, dt).response(u)
+    pade = LagDelay(lag_s, delay_s, dt, method="pade", pade_order=order).response(u)
+    return float(np.max(np.abs(exact - pade)))

@@ -1,0 +1,56 @@
+"""The ``railpilot`` command line: parse, call the library, print.
+
+Each command group lives in the module that owns it and exposes
+``register(subparsers)``; this file only wires them together. Machine-readable
+output (``--json``) is exactly one JSON object on stdout; logs and progress go to
+stderr. Exit codes: 0 success, 2 bad input (nothing was run or written),
+1 any other failure.
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+from collections.abc import Sequence
+
+from railpilot import __version__
+from railpilot.errors import RailpilotError
+
+#: Modules that add subcommands; each has ``register(subparsers) -> None`` and sets
+#: ``func`` on its parsers via ``set_defaults(func=...)``. ``func(args) -> int``.
+COMMAND_MODULES: tuple[str, ...] = (
+    "railpilot.commands.simulate",
+    "railpilot.commands.reproduce",
+    "railpilot.commands.demo",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="railpilot",
+        description="Train braking control and train-ground dispatch communication.",
+    )
+    parser.add_argument("--version", action="version", version=f"railpilot {__version__}")
+    subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
+    subparsers.required = True
+    for name in COMMAND_MODULES:
+        importlib.import_module(name).register(subparsers)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args.func(args))
+    except RailpilotError as exc:
+        print(f"railpilot: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("railpilot: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

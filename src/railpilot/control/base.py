@@ -1,0 +1,58 @@
+"""The interface every controller implements.
+
+Habits from simple-pid: ``reset()``, output limits, anti-windup, internal terms
+inspectable for tuning, ``dt`` always explicit, no clock and no sleeping.
+
+Fast path
+---------
+Controllers keep their numbers in two float64 arrays, ``params`` (fixed by the
+constructor) and ``state`` (changed by every update), and do their arithmetic in a
+Numba ``@njit`` kernel taking ``(params, state, ...)``. The Python object calls
+that kernel, and so does the simulator's compiled inner loop, so there is one
+implementation of every control law.
+"""
+
+from __future__ import annotations
+
+from abc import ABC, abstractmethod
+from typing import ClassVar
+
+import numpy as np
+
+
+class Controller(ABC):
+    """A discrete-time controller that knows nothing about the plant it drives."""
+
+    #: Short name used on the command line and in reports (``"pid"``, ``"smarc"``).
+    name: ClassVar[str]
+
+    params: np.ndarray
+    state: np.ndarray
+
+    @abstractmethod
+    def reset(self) -> None:
+        """Forget all history (integrators, filters, estimates) and start again."""
+
+    @property
+    @abstractmethod
+    def components(self) -> dict[str, float]:
+        """The internal terms of the last update (for tuning and plots)."""
+
+
+def check_dt(dt: float) -> float:
+    """Return ``dt`` [s] as a float, or raise ValueError if it is not > 0 and finite."""
+    dt = float(dt)
+    if not np.isfinite(dt) or dt <= 0.0:
+        raise ValueError(f"dt = {dt!r} is not allowed: expected a finite number > 0 [s]")
+    return dt
+
+
+def check_limits(limits: tuple[float | None, float | None]) -> tuple[float, float]:
+    """Turn ``(low, high)`` output limits (None = unbounded) into floats, low < high."""
+    low = -np.inf if limits[0] is None else float(limits[0])
+    high = np.inf if limits[1] is None else float(limits[1])
+    if not low < high:
+        raise ValueError(
+            f"output_limits = {limits!r} is not allowed: expected (low, high) with low < high"
+        )
+    return low, high

@@ -1,0 +1,37 @@
+"""The error hierarchy shared by the simulation side of railpilot.
+
+Each error names the offending field, the value it got and what is allowed, so a
+user can fix a scenario file without reading our code.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class RailpilotError(Exception):
+    """Base class of every error railpilot raises on purpose."""
+
+
+class ConfigError(RailpilotError, ValueError):
+    """A parameter is out of its allowed range.
+
+    Parameters
+    ----------
+    field
+        Dotted path of the parameter, e.g. ``"brake.air.lag_s"``.
+    value
+        The rejected value.
+    allowed
+        Human-readable statement of what is allowed, e.g. ``"a number > 0"``.
+    """
+
+    def __init__(self, field: str, value: Any, allowed: str) -> None:
+        self.field = field
+        self.value = value
+        self.allowed = allowed
+        super().__init__(f"{field} = {value!r} is not allowed: expected {allowed}")
+
+
+class ScenarioError(ConfigError):
+    """A scenario file is malformed (unknown key, wrong type, out of range)."""

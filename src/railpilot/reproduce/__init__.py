@@ -1,0 +1,22 @@
+"""Reproductions of the papers' published results, one module per result.
+
+Each module listed in :data:`REPRODUCTIONS` has
+``run(out_dir: pathlib.Path) -> railpilot.reproduce.base.Reproduction``:
+it simulates, writes its figures into ``out_dir`` and returns the JSON payload
+and the tables for the report.
+"""
+
+from __future__ import annotations
+
+import importlib
+from types import ModuleType
+
+#: ``railpilot reproduce NAME`` -> module implementing it
+REPRODUCTIONS: dict[str, str] = {
+    "smarc-ep": "railpilot.reproduce.smarc_ep",
+}
+
+
+def load(name: str) -> ModuleType:
+    """Import the module that reproduces ``name``; KeyError if unknown."""
+    return importlib.import_module(REPRODUCTIONS[name])

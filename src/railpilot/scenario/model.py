@@ -1,0 +1,110 @@
+"""Typed configuration of one braking scenario (paper 000 style, EP brake)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from railpilot.brakes.ep_blend import EPBrake
+from railpilot.errors import ConfigError
+from railpilot.sim.disturbance import Disturbance
+from railpilot.sim.reference import BrakingCurve, smooth_stop
+from railpilot.units import kmh_to_mps
+from railpilot.vehicle.line import Line
+from railpilot.vehicle.train import Train
+
+CONTROLLERS = ("pid", "smarc")
+
+
+@dataclass(frozen=True)
+class ATOModel:
+    """What the ATO (the controllers' side) believes about the train.
+
+    Attributes
+    ----------
+    mass_kg
+        Load-weighed mass [kg] the brake demand is computed with; None = the true mass.
+    davis
+        The ATO's resistance model ``(a0, a1, a2)`` [N/kN], v in km/h, used as a
+        feed-forward; None = the true coefficients.
+    lead_s
+        How far ahead [s] the reference acceleration is fed forward: the ATO's model
+        of the brake's delay plus time constant. None = the true ``delay + air lag``.
+    """
+
+    mass_kg: float | None = None
+    davis: tuple[float, float, float] | None = None
+    lead_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
+            raise ConfigError("ato.mass_t", self.mass_kg, "a finite mass > 0")
+        if self.lead_s is not None and not (np.isfinite(self.lead_s) and self.lead_s >= 0):
+            raise ConfigError("ato.lead_s", self.lead_s, "a finite number >= 0 [s]")
+        if self.davis is not None and not all(np.isfinite(c) and c >= 0 for c in self.davis):
+            raise ConfigError("ato.davis", self.davis, "three finite numbers >= 0")
+
+
+@dataclass(frozen=True)
+class ControllerSpec:
+    """Which controller runs and the parameters of each (constructor keywords)."""
+
+    name: str = "smarc"
+    params: dict[str, dict[str, Any]] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        if self.name not in CONTROLLERS:
+            raise ConfigError("controller.name", self.name, f"one of {', '.join(CONTROLLERS)}")
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Solver step [s], duration [s], ATO control period [s], recorder decimation."""
+
+    dt_s: float = 0.01
+    duration_s: float = 70.0
+    control_period_s: float = 0.01
+    record_every: int = 1
+
+    def __post_init__(self) -> None:
+        if not (np.isfinite(self.dt_s) and 0 < self.dt_s <= 0.1):
+            raise ConfigError("sim.dt_s", self.dt_s, "a step in (0, 0.1] s")
+        if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 3600):
+            raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 3600] s")
+        ratio = self.control_period_s / self.dt_s
+        if not (np.isfinite(ratio) and ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
+            raise ConfigError("sim.control_period_s", self.control_period_s,
+                              f"a whole multiple (>= 1) of sim.dt_s = {self.dt_s}")
+        if not (isinstance(self.record_every, int) and self.record_every >= 1):
+            raise ConfigError("sim.record_every", self.record_every, "an integer >= 1")
+
+    @property
+    def n_steps(self) -> int:
+        return int(round(self.duration_s / self.dt_s))
+
+    @property
+    def control_every(self) -> int:
+        return int(round(self.control_period_s / self.dt_s))
+
+
+def paper000_reference(start_m: float = 20_000.0) -> BrakingCurve:
+    """Paper 000's non-linear target curve from 72 km/h (our shape; see docs)."""
+    return smooth_stop(kmh_to_mps(72.0), decel_mps2=0.5, jerk_mps3=0.5, final_decel_mps2=0.3,
+                       final_phase_speed_mps=2.0, start_m=start_m)
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Everything one braking run needs."""
+
+    name: str = "scenario"
+    train: Train = field(default_factory=Train)
+    line: Line = field(default_factory=Line)
+    brake: EPBrake = field(default_factory=EPBrake)
+    reference: BrakingCurve = field(default_factory=paper000_reference)
+    disturbance: Disturbance = field(default_factory=Disturbance)
+    ato: ATOModel = field(default_factory=ATOModel)
+    controller: ControllerSpec = field(default_factory=ControllerSpec)
+    sim: SimSettings = field(default_factory=SimSettings)

@@ -1,0 +1,1 @@
+"""Reference curves, disturbances, the stepping engine, results and metrics."""

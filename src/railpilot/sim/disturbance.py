@@ -1,0 +1,80 @@
+"""Outside disturbances acting on the train: constant, by region, random (seeded).
+
+All are forces [N], positive in the direction of travel (a positive disturbance
+pushes the train on, as a tail wind or an unmodelled down-grade would; a negative
+one holds it back).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from railpilot.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class Region:
+    """A force [N] acting while the train's head is in ``[start_m, end_m)``."""
+
+    start_m: float
+    end_m: float
+    force_n: float
+
+
+@dataclass(frozen=True)
+class Disturbance:
+    """Disturbance forces.
+
+    Attributes
+    ----------
+    constant_n
+        Force acting all the time [N].
+    regions
+        Forces acting over stretches of line.
+    random_std_n
+        Standard deviation of a random force [N]: a new normal value every
+        ``random_hold_s`` seconds, held in between (piecewise constant).
+    random_hold_s
+        How long each random value holds [s].
+    seed
+        Seed of the random force; the same seed gives the same numbers.
+    """
+
+    constant_n: float = 0.0
+    regions: tuple[Region, ...] = ()
+    random_std_n: float = 0.0
+    random_hold_s: float = 1.0
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not np.isfinite(self.constant_n):
+            raise ConfigError("disturbance.constant_n", self.constant_n, "a finite number")
+        for i, r in enumerate(self.regions):
+            if not (np.isfinite(r.start_m) and np.isfinite(r.end_m) and r.end_m > r.start_m):
+                raise ConfigError(f"disturbance.regions[{i}]", (r.start_m, r.end_m),
+                                  "finite start_m < end_m")
+            if not np.isfinite(r.force_n):
+                raise ConfigError(f"disturbance.regions[{i}].force_n", r.force_n, "a finite number")
+        if not (np.isfinite(self.random_std_n) and self.random_std_n >= 0):
+            raise ConfigError("disturbance.random_std_n", self.random_std_n, "a number >= 0")
+        if not (np.isfinite(self.random_hold_s) and self.random_hold_s > 0):
+            raise ConfigError("disturbance.random_hold_s", self.random_hold_s, "a number > 0")
+
+    def region_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """``(starts, ends, forces)`` for the kernel."""
+        if not self.regions:
+            return np.zeros(0), np.zeros(0), np.zeros(0)
+        return (np.array([r.start_m for r in self.regions]),
+                np.array([r.end_m for r in self.regions]),
+                np.array([r.force_n for r in self.regions]))
+
+    def random_series(self, n_steps: int, dt: float) -> np.ndarray:
+        """The random force [N] at each of ``n_steps`` steps (zeros if none)."""
+        if self.random_std_n == 0.0:
+            return np.zeros(n_steps)
+        hold = max(int(round(self.random_hold_s / dt)), 1)
+        rng = np.random.default_rng(self.seed)
+        values = rng.normal(0.0, self.random_std_n, size=n_steps // hold + 1)
+        return np.repeat(values, hold)[:n_steps]

@@ -1,0 +1,85 @@
+"""One result object per run: columnar time series, metrics and metadata.
+
+Plots live in railpilot.report and take results; nothing here draws.
+"""
+
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+#: Recorded channels, in the column order of the kernel's recorder, with units.
+CHANNELS: tuple[tuple[str, str], ...] = (
+    ("time_s", "time [s]"),
+    ("position_m", "train head position [m]"),
+    ("speed_mps", "speed [m/s]"),
+    ("accel_mps2", "acceleration [m/s^2]"),
+    ("ref_position_m", "reference position [m]"),
+    ("ref_speed_mps", "reference speed [m/s]"),
+    ("ref_accel_mps2", "reference acceleration [m/s^2]"),
+    ("command_mps2", "controller command, acceleration [m/s^2]"),
+    ("demand_n", "brake force demand [N]"),
+    ("electric_n", "electric brake force [N]"),
+    ("air_n", "air (shoe) brake force [N]"),
+)
+
+#: Metrics every run reports, with units and definitions (docs/metrics.md).
+METRICS: dict[str, str] = {
+    "stop_error_m": "stop position minus stop point [m]; + overshoot, - short",
+    "stop_time_s": "time from the braking point to standstill [s] (nan if not stopped)",
+    "max_speed_error_mps": "max |v - v_ref(t)| while moving [m/s]",
+    "rms_speed_error_mps": "RMS of v - v_ref(t) while moving [m/s]",
+    "speed_error_at_changeover_mps": "|v - v_ref(t)| when v first drops to the changeover speed",
+    "max_decel_mps2": "max deceleration while moving [m/s^2]",
+    "max_jerk_mps3": "max |da/dt| while moving [m/s^3] (the stopping instant excluded)",
+    "max_position_error_m": "max |x - x_ref(t)| while moving [m]",
+    "energy_electric_j": "energy taken by the electric brake (regenerated) [J]",
+    "energy_friction_j": "energy dissipated by the shoes [J]",
+}
+
+
+@dataclass
+class SimResult:
+    """Time series (dict of equal-length NumPy arrays), metrics and metadata of one run."""
+
+    series: dict[str, np.ndarray]
+    metrics: dict[str, float]
+    meta: dict[str, Any] = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> np.ndarray:
+        return self.series[name]
+
+    def to_pandas(self) -> pd.DataFrame:
+        """The time series as a DataFrame indexed by time."""
+        import pandas as pd
+
+        frame = pd.DataFrame(self.series)
+        return frame.set_index("time_s")
+
+    def to_csv(self, path: Path) -> Path:
+        """Write the time series as CSV (header = channel names)."""
+        self.to_pandas().to_csv(path)
+        return path
+
+    def to_parquet(self, path: Path) -> Path:
+        """Write the time series as Parquet, with metrics and metadata in the schema."""
+        import pyarrow as pa
+        import pyarrow.parquet as pq
+
+        table = pa.Table.from_pydict(self.series)
+        info = {"metrics": self.metrics, "meta": self.meta}
+        table = table.replace_schema_metadata({"railpilot": json.dumps(info, default=str)})
+        pq.write_table(table, path)
+        return path
+
+    def summary(self) -> dict[str, float]:
+        """Metrics as plain floats (JSON-ready; nan becomes None)."""
+        return {k: (None if not np.isfinite(v) else float(v))  # type: ignore[misc]
+                for k, v in self.metrics.items()}
