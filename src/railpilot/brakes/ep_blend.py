@@ -13,9 +13,11 @@ Signal path, per control step::
          brake cylinder: first-order lag (paper eq. 4, T = 0.65 s)
          shoe force = A * g(v), g = mu(v)/mu0 (paper eq. 3, 5)
 
-Below the changeover speed (6 km/h) the electric brake fades out at
-``fade_rate_n_per_s``; since air fills the gap to the demand, it ramps in at the same
-rate, behind its own lag. A slide cut-out removes one motor car's share of electric
+Below the changeover speed (6 km/h) traction sends its pre-notice and, after
+``prenotice_s``, fades the electric brake out at ``fade_rate_n_per_s``; on the
+pre-notice the brake manager starts ramping air in at the same rate, so that air
+(behind its cylinder lag) arrives as electric leaves. With ``prenotice_s = 0`` air
+simply fills what electric no longer delivers, a lag late. A slide cut-out removes one motor car's share of electric
 brake at once at ``cutout_time_s``; air takes it over through the same path.
 """
 
@@ -31,10 +33,10 @@ from railpilot.errors import ConfigError
 from railpilot.units import KMH_PER_MPS
 
 (P_DELAY_N, P_JERK_RATE, P_E_FMAX, P_E_PMAX, P_CARS, P_CUT_CARS, P_CUT_T, P_V_CO, P_FADE,
- P_ALPHA_E, P_ALPHA_A, P_B1, P_B2, P_B3, P_BUF_LEN) = range(15)
-N_PARAMS = 15
-S_K, S_FCMD, S_E, S_A, S_ENV, S_FADING = range(6)
-N_STATE = 6
+ P_ALPHA_E, P_ALPHA_A, P_B1, P_B2, P_B3, P_PRENOTICE, P_BUF_LEN) = range(16)
+N_PARAMS = 16
+S_K, S_FCMD, S_E, S_A, S_ENV0, S_FADING, S_T0 = range(7)
+N_STATE = 7
 
 
 @dataclass(frozen=True)
@@ -56,6 +58,9 @@ class EPBrake:
         Electric/air changeover speed [km/h] (paper: 6).
     fade_rate_n_per_s
         Rate the electric brake fades out (and air ramps in) below changeover [N/s].
+    prenotice_s
+        Time [s] between traction's fade pre-notice and the start of its fade-out;
+        default: the air lag, so the air ramp arrives in step with the fade.
     cutout_cars, cutout_time_s
         Motor cars whose electric brake is cut (slide) and when [s]; 0 cars = none.
     beta1, beta2, beta3
@@ -68,6 +73,7 @@ class EPBrake:
     jerk_limit_mps3: float = 0.75
     changeover_kmh: float = 6.0
     fade_rate_n_per_s: float = 300e3
+    prenotice_s: float = 0.65
     cutout_cars: int = 0
     cutout_time_s: float = 0.0
     beta1: float = BETA1
@@ -76,7 +82,7 @@ class EPBrake:
 
     def __post_init__(self) -> None:
         for name in ("delay_s", "air_lag_s", "electric_lag_s", "changeover_kmh", "cutout_time_s",
-                     "beta1", "beta2"):
+                     "beta1", "beta2", "prenotice_s"):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"brake.{name}", value, "a finite number >= 0")
@@ -113,6 +119,7 @@ class EPBrake:
         p[P_B1] = self.beta1
         p[P_B2] = self.beta2
         p[P_B3] = self.beta3
+        p[P_PRENOTICE] = self.prenotice_s
         p[P_BUF_LEN] = n + 1
         return p
 
@@ -122,7 +129,7 @@ def ep_brake_step(p: np.ndarray, state: np.ndarray, buffer: np.ndarray, demand_n
                   speed_mps: float, t: float, dt: float) -> tuple[float, float]:
     """Advance the blended brake one step; return (electric [N], air shoe force [N]).
 
-    ``state = [k, F_cmd, E, A, fade envelope, fading flag]``; ``buffer`` has
+    ``state = [k, F_cmd, E, A, E at pre-notice, fading flag, pre-notice time]``; ``buffer`` has
     ``delay steps + 1`` slots.
     """
     length = int(p[P_BUF_LEN])
@@ -147,19 +154,24 @@ def ep_brake_step(p: np.ndarray, state: np.ndarray, buffer: np.ndarray, demand_n
     if t >= p[P_CUT_T]:
         cars_in -= p[P_CUT_CARS]
     e_avail = min(p[P_E_FMAX], p[P_E_PMAX] / v) * cars_in / p[P_CARS]
+    # what the brake manager expects electric to deliver during the fade
+    e_expected = np.inf
     if speed_mps <= p[P_V_CO]:
         if state[S_FADING] < 0.5:
             state[S_FADING] = 1.0
-            state[S_ENV] = state[S_E]
-        state[S_ENV] = max(state[S_ENV] - p[P_FADE] * dt, 0.0)
-        e_avail = min(e_avail, state[S_ENV])
+            state[S_ENV0] = state[S_E]
+            state[S_T0] = t
+        elapsed = t - state[S_T0]
+        e_expected = max(state[S_ENV0] - p[P_FADE] * elapsed, 0.0)
+        traction_env = max(state[S_ENV0] - p[P_FADE] * max(elapsed - p[P_PRENOTICE], 0.0), 0.0)
+        e_avail = min(e_avail, traction_env)
     e_cmd = min(f_cmd, e_avail)
     # traction follows its command with a lag, but never above what is available:
     # a cut-out removes a car's share at once and the fade ramps out at its own rate
     e = min(e_cmd + (state[S_E] - e_cmd) * p[P_ALPHA_E], e_avail)
     state[S_E] = e
 
-    a_cmd = max(f_cmd - e, 0.0)
+    a_cmd = max(f_cmd - min(e, e_expected), 0.0)
     a = a_cmd + (state[S_A] - a_cmd) * p[P_ALPHA_A]
     state[S_A] = a
     v_kmh = speed_mps * 3.6

@@ -14,7 +14,7 @@ the same as simple-pid's (checked in tests/control/test_pid.py).
 
 from __future__ import annotations
 
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
 from numba import njit
@@ -163,3 +163,47 @@ class PID(Controller):
     @property
     def output_limits(self) -> tuple[float, float]:
         return float(self.params[P_LO]), float(self.params[P_HI])
+
+
+class TrackingPID(PID):
+    """PID on speed error for tracking a braking curve, with position correction.
+
+    The speed set-point is the reference speed corrected by the position error,
+    ``v_set = v_ref - position_gain (x - x_ref)`` [m/s] (a position P loop around
+    the speed PID: the usual ATO cascade), so a position error left by a transient is
+    corrected, not just held. ``update((x_ref, v_ref), (x, v), dt)``.
+
+    Parameters
+    ----------
+    position_gain
+        Gain [1/s] of the outer position loop; 0 = plain speed PID.
+    **kwargs
+        As :class:`PID`.
+    """
+
+    name = "pid"
+
+    def __init__(self, kp: float, ki: float = 0.0, kd: float = 0.0, *,
+                 position_gain: float = 0.0, **kwargs: Any) -> None:
+        super().__init__(kp, ki, kd, **kwargs)
+        if not (np.isfinite(position_gain) and position_gain >= 0):
+            raise ValueError(f"position_gain = {position_gain!r} is not allowed: "
+                             "expected a finite number >= 0 [1/s]")
+        self.params = np.append(self.params, position_gain)
+
+    def update(self, setpoint: Any, measurement: Any, dt: float) -> float:
+        """``setpoint = (x_ref [m], v_ref [m/s])``, ``measurement = (x, v)``."""
+        x_ref, v_ref = setpoint
+        x, v = measurement
+        return float(pid_step(self.params, self.state,
+                              tracking_setpoint(self.params, x_ref, v_ref, x), float(v),
+                              check_dt(dt)))
+
+
+@njit(cache=True)
+def tracking_setpoint(params: np.ndarray, x_ref: float, v_ref: float, x: float) -> float:
+    """Speed set-point [m/s] of :class:`TrackingPID`: ``v_ref - k_x (x - x_ref)``."""
+    return v_ref - params[P_POSITION_GAIN] * (x - x_ref)
+
+
+P_POSITION_GAIN = N_PARAMS

@@ -36,15 +36,19 @@ def simc_pid_integrating(k: float, theta_s: float, lag_s: float,
 
 def smarc_from_simc(k: float, theta_s: float, lag_s: float,
                     tau_c_s: float | None = None) -> dict[str, float]:
-    """SMARC surface and reaching gains matched to the same SIMC loop.
+    """SMARC surface and reaching gains by the SIMC PI rule.
 
-    Near ``s = 0`` SMARC's feedback ``-ks (e2 + c e1)`` is a PI on speed (a P on
-    speed and an I on position). Matching it to SIMC's PI part gives the same loop
-    bandwidth and phase margin as the PID baseline: ``ks = Kc`` and
-    ``c = 1 / tau_I``; what SMARC adds on top (adaptation, robust term, the
-    ``alpha |s|`` gain) is then what the comparison measures.
+    Near ``s = 0`` SMARC's linear feedback is ``-(ks + c) e2 - ks c e1`` (the
+    ``-c e2`` inside the equivalent control adds ``c`` to the speed gain): a PI on
+    speed, P on speed and I on position, with no derivative. A PI cannot cancel the
+    brake's lag the way SIMC's derivative does, so SIMC's PI rule counts the lag as
+    extra delay (``theta_eff = theta + T``): ``Kc = 1 / (k (tau_c + theta_eff))``,
+    ``tau_I = 4 (tau_c + theta_eff)``, ``tau_c = theta_eff``. Then ``c = 1 / tau_I``
+    and ``ks = Kc - c``. What SMARC adds on top (adaptation, robust term, the
+    ``alpha |s|`` gain) is what the comparison measures.
     """
-    tau_c = theta_s if tau_c_s is None else tau_c_s
-    kc = 1.0 / (k * (tau_c + theta_s))
-    tau_i = 4.0 * (tau_c + theta_s)
-    return {"ks": kc, "c": 1.0 / tau_i}
+    theta_eff = theta_s + lag_s
+    tau_c = theta_eff if tau_c_s is None else tau_c_s
+    kc = 1.0 / (k * (tau_c + theta_eff))
+    c = 1.0 / (4.0 * (tau_c + theta_eff))
+    return {"ks": kc - c, "c": c}

@@ -92,7 +92,7 @@ class SimSettings:
 def paper000_reference(start_m: float = 20_000.0) -> BrakingCurve:
     """Paper 000's non-linear target curve from 72 km/h (our shape; see docs)."""
     return smooth_stop(kmh_to_mps(72.0), decel_mps2=0.5, jerk_mps3=0.5, final_decel_mps2=0.3,
-                       final_phase_speed_mps=2.0, start_m=start_m)
+                       final_phase_speed_mps=2.0, start_m=start_m, coast_s=2.0)
 
 
 @dataclass(frozen=True)

@@ -24,7 +24,7 @@ import numpy as np
 from numba import njit
 
 from railpilot.brakes.ep_blend import ep_brake_step
-from railpilot.control.pid import pid_step
+from railpilot.control.pid import pid_step, tracking_setpoint
 from railpilot.control.smarc import smarc_step
 
 KIND_PID = 0
@@ -127,7 +127,8 @@ def run_ep_kernel(
             r_model = (ato[A_A0] + ato[A_A1] * v_kmh_m + ato[A_A2] * v_kmh_m * v_kmh_m) \
                 * G / 1000.0 * ato[A_MASS] / ato[A_MEFF_LW]
             if kind == KIND_PID:
-                u = ref_a_ff[k] + r_model + pid_step(ctrl_p, ctrl_s, ref_v[k], v_meas, ctrl_dt)
+                v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x)
+                u = ref_a_ff[k] + r_model + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
             else:
                 u = smarc_step(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x, v_meas,
                                ctrl_dt) + r_model

@@ -103,12 +103,16 @@ def smooth_stop(
     final_decel_mps2: float,
     final_phase_speed_mps: float,
     start_m: float = 0.0,
+    coast_s: float = 0.0,
+    ease_out: bool = False,
 ) -> BrakingCurve:
     """A jerk-limited non-linear braking curve (paper 000's target curve).
 
-    Phases: deceleration ramps from 0 to ``decel`` at ``jerk``; constant ``decel``;
-    eases to ``final_decel`` at ``jerk``; constant ``final_decel`` from
-    ``final_phase_speed`` down; eases to 0 at ``jerk`` exactly as the speed reaches 0.
+    Phases: an optional coast of ``coast_s`` at ``v0`` before the braking point (so a
+    delayed brake can be commanded ahead of it); deceleration ramps from 0 to
+    ``decel`` at ``jerk``; constant ``decel``; eases to ``final_decel`` at ``jerk``;
+    constant ``final_decel`` from ``final_phase_speed`` down to standstill, or, with
+    ``ease_out``, easing to 0 at ``jerk`` exactly as the speed reaches 0.
 
     Parameters
     ----------
@@ -121,7 +125,12 @@ def smooth_stop(
     final_phase_speed_mps
         Speed [m/s] at which the constant final deceleration starts.
     start_m
-        Braking point [m].
+        Braking point [m]: where the deceleration starts to ramp in.
+    coast_s
+        Time [s] the curve runs at ``v0`` before the braking point.
+    ease_out
+        End with deceleration easing to zero (softer, but the last second of the
+        stop then depends on the brake's lag); default: stop at ``final_decel``.
     """
     for name, value in (("reference.v0", v0_mps), ("reference.decel", decel_mps2),
                         ("reference.jerk", jerk_mps3), ("reference.final_decel", final_decel_mps2),
@@ -133,7 +142,7 @@ def smooth_stop(
     a, af, j = decel_mps2, final_decel_mps2, jerk_mps3
     loss_in = a * a / (2 * j)
     loss_ease = (a + af) / 2 * (a - af) / j
-    loss_out = af * af / (2 * j)
+    loss_out = af * af / (2 * j) if ease_out else 0.0
     if final_phase_speed_mps <= loss_out:
         raise ConfigError("reference.final_phase_speed", final_phase_speed_mps,
                           f"a speed > {loss_out:.4g} m/s (what the final ease-out loses)")
@@ -143,11 +152,14 @@ def smooth_stop(
         raise ConfigError("reference.v0", v0_mps,
                           "a speed high enough for the phases (raise v0 or lower the jerk/"
                           "final_phase_speed)")
-    return BrakingCurve(
-        start_m, v0_mps, 0.0,
-        (a / j, t_main, (a - af) / j, t_final, af / j),
-        (-j, 0.0, j, 0.0, j),
-    )
+    if not (np.isfinite(coast_s) and coast_s >= 0):
+        raise ConfigError("reference.coast_s", coast_s, "a finite number >= 0")
+    durations = [coast_s, a / j, t_main, (a - af) / j, t_final]
+    jerks = [0.0, -j, 0.0, j, 0.0]
+    if ease_out:
+        durations.append(af / j)
+        jerks.append(j)
+    return BrakingCurve(start_m - v0_mps * coast_s, v0_mps, 0.0, tuple(durations), tuple(jerks))
 
 
 def _check_positive(name: str, value: float) -> None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import inspect
 from dataclasses import dataclass
 from typing import Any
 
@@ -9,7 +10,7 @@ import numpy as np
 
 from railpilot.brakes.ep_blend import N_STATE as N_BRAKE_STATE
 from railpilot.control.base import Controller
-from railpilot.control.pid import PID
+from railpilot.control.pid import TrackingPID
 from railpilot.control.smarc import SMARC
 from railpilot.control.tuning import simc_pid_integrating, smarc_from_simc
 from railpilot.errors import ConfigError
@@ -27,11 +28,14 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     get the same loop bandwidth.
     """
     delay, lag = _ato_brake_model(scenario)
+    # tau_c and the remaining free parameters come from the grid search that
+    # docs/paper-000-smarc-ep.md describes (same grid effort for both controllers)
     if name == "pid":
-        return dict(simc_pid_integrating(1.0, delay, lag), anti_windup="backcalc")
+        return dict(simc_pid_integrating(1.0, delay, lag, tau_c_s=0.75 * delay),
+                    anti_windup="backcalc", position_gain=0.8)
     if name == "smarc":
-        return dict(smarc_from_simc(1.0, delay, lag), alpha=1.0, eta=0.02, phi=0.1,
-                    gamma=(0.02, 0.05), theta_bounds=((0.7, 1.5), (-0.3, 0.3)))
+        return dict(smarc_from_simc(1.0, delay, lag, tau_c_s=0.25 * (delay + lag)), alpha=1.0,
+                    eta=0.1, phi=0.05, gamma=(0.05, 0.2), theta_bounds=((0.7, 1.5), (-0.3, 0.3)))
     raise ConfigError("controller.name", name, "one of pid, smarc")
 
 
@@ -49,16 +53,38 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
     """Build the scenario's controller (or ``name``) with tuned defaults + overrides."""
     name = name or scenario.controller.name
     params = default_controller_params(scenario, name)
-    params.update(scenario.controller.params.get(name, {}))
+    overrides = scenario.controller.params.get(name, {})
+    cls = TrackingPID if name == "pid" else SMARC
+    allowed = _parameter_names(cls)
+    for key, value in overrides.items():
+        if key not in allowed:
+            raise ConfigError(f"controller.{name}.{key}", value,
+                              f"a parameter of {cls.__name__}: {', '.join(allowed)}")
+    params.update(overrides)
     a_max = scenario.train.max_service_decel_mps2
     try:
         if name == "pid":
             params.setdefault("output_limits", (-a_max, a_max))
-            return PID(**params)
+            return TrackingPID(**params)
         params.setdefault("output_limits", (-a_max, a_max))
         return SMARC(**params)
     except (TypeError, ValueError) as exc:
-        raise ConfigError(f"controller.{name}", params, f"valid parameters ({exc})") from exc
+        raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({exc})") from exc
+
+
+def _parameter_names(cls: type) -> list[str]:
+    """Keyword parameters a controller class takes, following ``**kwargs`` to its base."""
+    names: list[str] = []
+    for klass in cls.__mro__:
+        init = klass.__dict__.get("__init__")
+        if init is None:
+            continue
+        params = inspect.signature(init).parameters.values()
+        names += [p.name for p in params if p.name != "self" and p.kind not in
+                  (p.VAR_KEYWORD, p.VAR_POSITIONAL) and p.name not in names]
+        if not any(p.kind == p.VAR_KEYWORD for p in params):
+            break
+    return names
 
 
 @dataclass
@@ -117,12 +143,13 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
                                   train.electric_brake.max_power_w, train.motor_cars)
     edges, values = scenario.line.resistance_profile()
     reg_start, reg_end, reg_force = scenario.disturbance.region_arrays()
-    if isinstance(controller, PID):
+    if isinstance(controller, TrackingPID):
         kind = engine.KIND_PID
     elif isinstance(controller, SMARC):
         kind = engine.KIND_SMARC
     else:
-        raise ConfigError("controller", type(controller).__name__, "a PID or SMARC controller")
+        raise ConfigError("controller", type(controller).__name__,
+                          "a TrackingPID or SMARC controller")
     controller.reset()
     return KernelInputs(
         n_steps=n, dt=dt, control_every=sim.control_every, train=train_arr, brake_p=brake_p,

@@ -1,0 +1,107 @@
+"""Figures of paper 000 (EP braking): speed-distance, deceleration, speed error."""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+from railpilot.sim.result import SimResult  # noqa: E402
+
+COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green"}
+
+
+def _moving(result: SimResult) -> np.ndarray:
+    """Samples up to and including the stop."""
+    v = result["speed_mps"]
+    stopped = np.nonzero(v <= 0.0)[0]
+    end = stopped[0] + 1 if len(stopped) else len(v)
+    return np.arange(end)
+
+
+def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps: float) -> Path:
+    """Fig. 4: speed over distance to go, with the target curve and a zoom on the stop."""
+    fig, (ax, zoom) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=[2, 1])
+    first = next(iter(results.values()))
+    stop_m = first.meta["stop_point_m"]
+    for name, r in results.items():
+        i = _moving(r)
+        ax.plot(r["position_m"][i] - stop_m, r["speed_mps"][i] * 3.6, color=COLORS.get(name),
+                label=name.upper())
+        zoom.plot(r["position_m"][i] - stop_m, r["speed_mps"][i] * 3.6, color=COLORS.get(name))
+    i = _moving(first)
+    ref_x = first["ref_position_m"] - stop_m
+    ref_v = first["ref_speed_mps"] * 3.6
+    for a in (ax, zoom):
+        a.plot(ref_x, ref_v, "k--", lw=1, label="target curve" if a is ax else None)
+        a.axhline(changeover_mps * 3.6, color="grey", lw=0.6, ls=":")
+        a.grid(alpha=0.3)
+        a.set_xlabel("position relative to the stop point [m]")
+    ax.set_ylabel("speed [km/h]")
+    ax.set_title("Speed-distance tracking")
+    ax.legend()
+    zoom.set_xlim(-25, 2)
+    zoom.set_ylim(0, 12)
+    zoom.axvline(0, color="k", lw=0.8)
+    zoom.set_title("Last 25 m (dotted: 6 km/h changeover)")
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def deceleration(results: Mapping[str, SimResult], path: Path, limit_mps2: float) -> Path:
+    """Fig. 5: deceleration over time, with the service limit; brake split below."""
+    fig, (ax, split) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True,
+                                    height_ratios=[3, 2])
+    first = next(iter(results.values()))
+    for name, r in results.items():
+        i = _moving(r)
+        ax.plot(r["time_s"][i], -r["accel_mps2"][i], color=COLORS.get(name), label=name.upper())
+        split.plot(r["time_s"][i], r["electric_n"][i] / 1e3, color=COLORS.get(name), lw=1,
+                   label=f"{name.upper()} electric")
+        split.plot(r["time_s"][i], r["air_n"][i] / 1e3, color=COLORS.get(name), lw=1, ls="--",
+                   label=f"{name.upper()} air")
+    i = _moving(first)
+    ax.plot(first["time_s"][i], -first["ref_accel_mps2"][i], "k--", lw=1, label="target")
+    ax.axhline(limit_mps2, color="red", lw=0.8, ls=":", label="max service deceleration")
+    ax.set_ylabel("deceleration [m/s²]")
+    ax.set_title("Deceleration")
+    ax.legend(loc="lower center", ncol=4, fontsize=8)
+    ax.grid(alpha=0.3)
+    split.set_ylabel("brake force [kN]")
+    split.set_xlabel("time [s]")
+    split.legend(ncol=2, fontsize=8)
+    split.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path
+
+
+def speed_error(results: Mapping[str, SimResult], path: Path, changeover_mps: float) -> Path:
+    """Fig. 6: speed error ``v - v_ref(t)`` over time, changeover marked."""
+    fig, ax = plt.subplots(figsize=(10, 3.8))
+    for name, r in results.items():
+        i = _moving(r)
+        err = r["speed_mps"][i] - r["ref_speed_mps"][i]
+        ax.plot(r["time_s"][i], err, color=COLORS.get(name), label=name.upper())
+        v = r["speed_mps"][i]
+        below = np.nonzero(v <= changeover_mps)[0]
+        if len(below):
+            ax.axvline(r["time_s"][i][below[0]], color=COLORS.get(name), lw=0.7, ls=":")
+    ax.axhline(0, color="k", lw=0.6)
+    ax.set_xlabel("time [s]")
+    ax.set_ylabel("speed error v - v_ref [m/s]")
+    ax.set_title("Speed tracking error (dotted: train reaches the 6 km/h changeover)")
+    ax.legend()
+    ax.grid(alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+    return path

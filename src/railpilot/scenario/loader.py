@@ -1,0 +1,316 @@
+"""Read a scenario TOML file into a :class:`~railpilot.scenario.model.Scenario`.
+
+Papers' units at the edge (t, km/h, kN, km posts), SI inside. Every key is checked:
+unknown keys, wrong types and out-of-range values raise ScenarioError naming the
+dotted key, the value and what is allowed; nothing runs on a bad file.
+
+The file layout (examples/paper000_smarc_ep.toml is a complete one)::
+
+    name = "..."
+    kind = "ep-braking"            # "eddy-brake" files are routed to railpilot.eddy
+    [train]  mass_t, rotating_mass_factor, length_m, davis = [a0, a1, a2],
+             max_service_decel_mps2, motor_cars
+    [train.electric_brake]  max_force_kn, max_power_kw
+    [line]   gradients = [{start_km, end_km, permille}], curves = [{start_km, end_km,
+             radius_m}], speed_limits = [{start_km, end_km, limit_kmh}],
+             stations = [{name, stop_km}]
+    [brake]  delay_s, air_lag_s, electric_lag_s, jerk_limit_mps3, changeover_kmh,
+             fade_rate_kn_per_s, prenotice_s, cutout_cars, cutout_time_s, beta = [b1, b2, b3]
+    [reference]  shape = "smooth" | "constant", start_km, v0_kmh, decel_mps2,
+             jerk_mps3, final_decel_mps2, final_phase_speed_kmh
+    [disturbance]  constant_kn, random_std_kn, random_hold_s, seed,
+             regions = [{start_km, end_km, force_kn}]
+    [ato]    mass_t, davis = [a0, a1, a2], lead_s
+    [controller]  name = "pid" | "smarc"; [controller.pid] / [controller.smarc] params
+    [sim]    dt_s, duration_s, control_period_s, record_every
+"""
+
+from __future__ import annotations
+
+import tomllib
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+from railpilot.brakes.ep_blend import EPBrake
+from railpilot.errors import ConfigError, ScenarioError
+from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
+from railpilot.sim.disturbance import Disturbance, Region
+from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
+from railpilot.units import kmh_to_mps, km_post_to_m, kn_to_n, tonne_to_kg
+from railpilot.vehicle.line import Line, Segment, Station
+from railpilot.vehicle.train import ElectricBrakeCurve, Train
+
+T = TypeVar("T")
+
+KINDS = ("ep-braking", "eddy-brake")
+
+
+class _Table:
+    """A TOML table being read: remembers its dotted path and which keys were used."""
+
+    def __init__(self, data: Any, path: str) -> None:
+        if not isinstance(data, Mapping):
+            raise ScenarioError(path or "<file>", data, "a table")
+        self.data = data
+        self.path = path
+        self.used: set[str] = set()
+
+    def key(self, name: str) -> str:
+        return f"{self.path}.{name}" if self.path else name
+
+    def has(self, name: str) -> bool:
+        return name in self.data
+
+    def number(self, name: str, default: float | None = None, *, gt: float | None = None,
+               ge: float | None = None) -> float:
+        """A finite number, optionally ``> gt`` or ``>= ge`` (checked in the file's units)."""
+        self.used.add(name)
+        if name not in self.data:
+            if default is None:
+                raise ScenarioError(self.key(name), None, "a number (the key is required)")
+            return default
+        value = self.data[name]
+        if (isinstance(value, bool) or not isinstance(value, int | float)
+                or value != value or value in (float("inf"), float("-inf"))):
+            raise ScenarioError(self.key(name), value, "a finite number")
+        if gt is not None and not value > gt:
+            raise ScenarioError(self.key(name), value, f"a number > {gt:g}")
+        if ge is not None and not value >= ge:
+            raise ScenarioError(self.key(name), value, f"a number >= {ge:g}")
+        return float(value)
+
+    def optional_number(self, name: str) -> float | None:
+        return self.number(name) if name in self.data else None
+
+    def integer(self, name: str, default: int) -> int:
+        self.used.add(name)
+        value = self.data.get(name, default)
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ScenarioError(self.key(name), value, "an integer")
+        return value
+
+    def string(self, name: str, default: str, choices: tuple[str, ...] | None = None) -> str:
+        self.used.add(name)
+        value = self.data.get(name, default)
+        if not isinstance(value, str):
+            raise ScenarioError(self.key(name), value, "a string")
+        if choices is not None and value not in choices:
+            raise ScenarioError(self.key(name), value, f"one of {', '.join(choices)}")
+        return value
+
+    def numbers(self, name: str, count: int) -> tuple[float, ...] | None:
+        self.used.add(name)
+        if name not in self.data:
+            return None
+        value = self.data[name]
+        if (not isinstance(value, list) or len(value) != count
+                or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)):
+            raise ScenarioError(self.key(name), value, f"a list of {count} numbers")
+        return tuple(float(v) for v in value)
+
+    def table(self, name: str) -> _Table:
+        self.used.add(name)
+        return _Table(self.data.get(name, {}), self.key(name))
+
+    def tables(self, name: str) -> list[_Table]:
+        self.used.add(name)
+        value = self.data.get(name, [])
+        if not isinstance(value, list):
+            raise ScenarioError(self.key(name), value, "a list of tables")
+        return [_Table(item, f"{self.key(name)}[{i}]") for i, item in enumerate(value)]
+
+    def raw(self, name: str) -> Any:
+        self.used.add(name)
+        return self.data.get(name)
+
+    def done(self) -> None:
+        """Reject keys nobody asked for (typos must not pass silently)."""
+        unknown = sorted(set(self.data) - self.used)
+        if unknown:
+            known = ", ".join(sorted(self.used)) or "none"
+            raise ScenarioError(self.key(unknown[0]), self.data[unknown[0]],
+                                f"a known key instead of '{unknown[0]}' (known here: {known})")
+
+
+def _build(path: str, make: Callable[[], T]) -> T:
+    """Run a constructor; turn its ConfigError into a ScenarioError at ``path``."""
+    try:
+        return make()
+    except ScenarioError:
+        raise
+    except ConfigError as exc:
+        field = exc.field if exc.field.startswith(path.split(".")[0]) else f"{path}.{exc.field}"
+        raise ScenarioError(field, exc.value, exc.allowed) from exc
+
+
+def _train(t: _Table) -> Train:
+    davis = t.numbers("davis", 3) or (0.42, 0.0016, 0.000132)
+    eb = t.table("electric_brake")
+    curve = _build("train.electric_brake", lambda: ElectricBrakeCurve(
+        max_force_n=kn_to_n(eb.number("max_force_kn", 380.0)),
+        max_power_w=eb.number("max_power_kw", 4800.0) * 1000.0))
+    eb.done()
+    train = _build("train", lambda: Train(
+        mass_kg=tonne_to_kg(t.number("mass_t", 536.0, gt=0)),
+        rotating_mass_factor=t.number("rotating_mass_factor", 0.06),
+        length_m=t.number("length_m", 140.0, gt=0),
+        davis_a0=davis[0], davis_a1=davis[1], davis_a2=davis[2],
+        max_service_decel_mps2=t.number("max_service_decel_mps2", 1.0, gt=0),
+        electric_brake=curve,
+        motor_cars=t.integer("motor_cars", 4)))
+    t.done()
+    return train
+
+
+def _segments(t: _Table, name: str, value_key: str, scale: Callable[[float], float]
+              ) -> tuple[Segment, ...]:
+    out = []
+    for item in t.tables(name):
+        seg = Segment(km_post_to_m(item.number("start_km")), km_post_to_m(item.number("end_km")),
+                      scale(item.number(value_key)))
+        item.done()
+        out.append(seg)
+    return tuple(out)
+
+
+def _line(t: _Table) -> Line:
+    gradients = _segments(t, "gradients", "permille", float)
+    curves = _segments(t, "curves", "radius_m", float)
+    limits = _segments(t, "speed_limits", "limit_kmh", kmh_to_mps)
+    stations = []
+    for item in t.tables("stations"):
+        stations.append(Station(item.string("name", "station"),
+                                km_post_to_m(item.number("stop_km"))))
+        item.done()
+    line = _build("line", lambda: Line(gradients, curves, limits, tuple(stations)))
+    t.done()
+    return line
+
+
+def _brake(t: _Table) -> EPBrake:
+    beta = t.numbers("beta", 3) or (0.138, 0.168, 0.221)
+    brake = _build("brake", lambda: EPBrake(
+        delay_s=t.number("delay_s", 0.3), air_lag_s=t.number("air_lag_s", 0.65),
+        electric_lag_s=t.number("electric_lag_s", 0.3),
+        jerk_limit_mps3=t.number("jerk_limit_mps3", 0.75),
+        changeover_kmh=t.number("changeover_kmh", 6.0),
+        fade_rate_n_per_s=kn_to_n(t.number("fade_rate_kn_per_s", 300.0)),
+        prenotice_s=t.number("prenotice_s", 0.65),
+        cutout_cars=t.integer("cutout_cars", 0), cutout_time_s=t.number("cutout_time_s", 0.0),
+        beta1=beta[0], beta2=beta[1], beta3=beta[2]))
+    t.done()
+    return brake
+
+
+def _reference(t: _Table) -> BrakingCurve:
+    shape = t.string("shape", "smooth", ("smooth", "constant"))
+    start = km_post_to_m(t.number("start_km", 0.0))
+    v0 = kmh_to_mps(t.number("v0_kmh", 72.0))
+    if shape == "constant":
+        curve = _build("reference", lambda: constant_deceleration(
+            v0, t.number("decel_mps2"), start))
+    else:
+        curve = _build("reference", lambda: smooth_stop(
+            v0, t.number("decel_mps2", 0.5), t.number("jerk_mps3", 0.5),
+            t.number("final_decel_mps2", 0.3),
+            kmh_to_mps(t.number("final_phase_speed_kmh", 7.2)), start))
+    t.done()
+    return curve
+
+
+def _disturbance(t: _Table) -> Disturbance:
+    regions = []
+    for item in t.tables("regions"):
+        regions.append(Region(km_post_to_m(item.number("start_km")),
+                              km_post_to_m(item.number("end_km")),
+                              kn_to_n(item.number("force_kn"))))
+        item.done()
+    dist = _build("disturbance", lambda: Disturbance(
+        constant_n=kn_to_n(t.number("constant_kn", 0.0)), regions=tuple(regions),
+        random_std_n=kn_to_n(t.number("random_std_kn", 0.0)),
+        random_hold_s=t.number("random_hold_s", 1.0), seed=t.integer("seed", 0)))
+    t.done()
+    return dist
+
+
+def _ato(t: _Table) -> ATOModel:
+    mass_t = t.optional_number("mass_t")
+    ato = _build("ato", lambda: ATOModel(
+        mass_kg=tonne_to_kg(mass_t) if mass_t is not None else None,
+        davis=t.numbers("davis", 3),  # type: ignore[arg-type]
+        lead_s=t.optional_number("lead_s")))
+    t.done()
+    return ato
+
+
+def _controller(t: _Table) -> ControllerSpec:
+    name = t.string("name", "smarc", ("pid", "smarc"))
+    params: dict[str, dict[str, Any]] = {}
+    for ctrl in ("pid", "smarc"):
+        if t.has(ctrl):
+            sub = t.raw(ctrl)
+            if not isinstance(sub, Mapping):
+                raise ScenarioError(t.key(ctrl), sub, "a table of controller parameters")
+            params[ctrl] = {k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                            if isinstance(v, list) else v for k, v in sub.items()}
+    t.done()
+    return ControllerSpec(name, params)
+
+
+def _sim(t: _Table) -> SimSettings:
+    dt = t.number("dt_s", 0.01)
+    sim = _build("sim", lambda: SimSettings(
+        dt_s=dt, duration_s=t.number("duration_s", 70.0),
+        control_period_s=t.number("control_period_s", dt),
+        record_every=t.integer("record_every", 1)))
+    t.done()
+    return sim
+
+
+def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
+    """Build and validate a scenario from a parsed TOML mapping."""
+    top = _Table(data, "")
+    top.string("kind", "ep-braking", ("ep-braking",))
+    name = top.string("name", "scenario")
+    train = _train(top.table("train"))
+    line = _line(top.table("line"))
+    brake = _brake(top.table("brake"))
+    reference = _reference(top.table("reference"))
+    disturbance = _disturbance(top.table("disturbance"))
+    ato = _ato(top.table("ato"))
+    controller = _controller(top.table("controller"))
+    sim = _sim(top.table("sim"))
+    top.done()
+    scenario = Scenario(name, train, line, brake, reference, disturbance, ato, controller, sim)
+    _check_consistency(scenario)
+    return scenario
+
+
+def _check_consistency(scenario: Scenario) -> None:
+    """Checks that need more than one table; raise before anything runs."""
+    _build("brake", lambda: scenario.brake.pack(
+        scenario.sim.dt_s, scenario.train.effective_mass_kg,
+        scenario.train.electric_brake.max_force_n, scenario.train.electric_brake.max_power_w,
+        scenario.train.motor_cars))
+    # a controller given parameters it does not take is an error now, not mid-run
+    from railpilot.sim.run import make_controller
+
+    for name in scenario.controller.params:
+        _build(f"controller.{name}", lambda name=name: make_controller(scenario, name))
+
+
+def read_toml(path: Path) -> dict[str, Any]:
+    """Parse a TOML file; a missing or malformed file is a ScenarioError."""
+    try:
+        with open(path, "rb") as fh:
+            return tomllib.load(fh)
+    except FileNotFoundError as exc:
+        raise ScenarioError("SCENARIO", str(path), "an existing TOML file") from exc
+    except tomllib.TOMLDecodeError as exc:
+        raise ScenarioError("SCENARIO", str(path), f"valid TOML ({exc})") from exc
+
+
+def load_scenario(path: Path | str) -> Scenario:
+    """Read and validate an ``ep-braking`` scenario file."""
+    return scenario_from_mapping(read_toml(Path(path)))
