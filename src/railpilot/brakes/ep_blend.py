@@ -17,8 +17,9 @@ Below the changeover speed (6 km/h) traction sends its pre-notice and, after
 ``prenotice_s``, fades the electric brake out at ``fade_rate_n_per_s``; on the
 pre-notice the brake manager starts ramping air in at the same rate, so that air
 (behind its cylinder lag) arrives as electric leaves. With ``prenotice_s = 0`` air
-simply fills what electric no longer delivers, a lag late. A slide cut-out removes one motor car's share of electric
-brake at once at ``cutout_time_s``; air takes it over through the same path.
+simply fills what electric no longer delivers, a lag late. A slide cut-out removes
+one motor car's share of electric brake at once at ``cutout_time_s``; air takes it
+over through the same path.
 """
 
 from __future__ import annotations
@@ -32,8 +33,24 @@ from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.errors import ConfigError
 from railpilot.units import KMH_PER_MPS
 
-(P_DELAY_N, P_JERK_RATE, P_E_FMAX, P_E_PMAX, P_CARS, P_CUT_CARS, P_CUT_T, P_V_CO, P_FADE,
- P_ALPHA_E, P_ALPHA_A, P_B1, P_B2, P_B3, P_PRENOTICE, P_BUF_LEN) = range(16)
+(
+    P_DELAY_N,
+    P_JERK_RATE,
+    P_E_FMAX,
+    P_E_PMAX,
+    P_CARS,
+    P_CUT_CARS,
+    P_CUT_T,
+    P_V_CO,
+    P_FADE,
+    P_ALPHA_E,
+    P_ALPHA_A,
+    P_B1,
+    P_B2,
+    P_B3,
+    P_PRENOTICE,
+    P_BUF_LEN,
+) = range(16)
 N_PARAMS = 16
 S_K, S_FCMD, S_E, S_A, S_ENV0, S_FADING, S_T0 = range(7)
 N_STATE = 7
@@ -81,8 +98,16 @@ class EPBrake:
     beta3: float = BETA3
 
     def __post_init__(self) -> None:
-        for name in ("delay_s", "air_lag_s", "electric_lag_s", "changeover_kmh", "cutout_time_s",
-                     "beta1", "beta2", "prenotice_s"):
+        for name in (
+            "delay_s",
+            "air_lag_s",
+            "electric_lag_s",
+            "changeover_kmh",
+            "cutout_time_s",
+            "beta1",
+            "beta2",
+            "prenotice_s",
+        ):
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"brake.{name}", value, "a finite number >= 0")
@@ -93,17 +118,25 @@ class EPBrake:
         if not (isinstance(self.cutout_cars, int) and self.cutout_cars >= 0):
             raise ConfigError("brake.cutout_cars", self.cutout_cars, "an integer >= 0")
 
-    def pack(self, dt: float, effective_mass_kg: float, max_force_n: float, max_power_w: float,
-             motor_cars: int) -> np.ndarray:
+    def pack(
+        self,
+        dt: float,
+        effective_mass_kg: float,
+        max_force_n: float,
+        max_power_w: float,
+        motor_cars: int,
+    ) -> np.ndarray:
         """The kernel's parameter array for step ``dt`` [s] and the brake manager's mass."""
         steps = self.delay_s / dt
-        n = int(round(steps))
+        n = round(steps)
         if abs(steps - n) > 1e-6:
-            raise ConfigError("brake.delay_s", self.delay_s,
-                              f"a whole number of simulation steps (dt = {dt} s)")
+            raise ConfigError(
+                "brake.delay_s", self.delay_s, f"a whole number of simulation steps (dt = {dt} s)"
+            )
         if self.cutout_cars > motor_cars:
-            raise ConfigError("brake.cutout_cars", self.cutout_cars,
-                              f"at most train.motor_cars = {motor_cars}")
+            raise ConfigError(
+                "brake.cutout_cars", self.cutout_cars, f"at most train.motor_cars = {motor_cars}"
+            )
         p = np.zeros(N_PARAMS)
         p[P_DELAY_N] = n
         p[P_JERK_RATE] = self.jerk_limit_mps3 * effective_mass_kg
@@ -125,8 +158,15 @@ class EPBrake:
 
 
 @njit(cache=True)
-def ep_brake_step(p: np.ndarray, state: np.ndarray, buffer: np.ndarray, demand_n: float,
-                  speed_mps: float, t: float, dt: float) -> tuple[float, float]:
+def ep_brake_step(
+    p: np.ndarray,
+    state: np.ndarray,
+    buffer: np.ndarray,
+    demand_n: float,
+    speed_mps: float,
+    t: float,
+    dt: float,
+) -> tuple[float, float]:
     """Advance the blended brake one step; return (electric [N], air shoe force [N]).
 
     ``state = [k, F_cmd, E, A, E at pre-notice, fading flag, pre-notice time]``; ``buffer`` has

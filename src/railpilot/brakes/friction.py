@@ -16,7 +16,7 @@ def shoe_friction(
     speed_kmh: Num, beta1: float = BETA1, beta2: float = BETA2, beta3: float = BETA3
 ) -> Num:
     """Shoe friction coefficient ``mu(v) = beta1 exp(-beta2 v) + beta3`` [-], v in [km/h]."""
-    return beta1 * np.exp(-beta2 * np.abs(speed_kmh)) + beta3  # type: ignore[no-any-return]
+    return beta1 * np.exp(-beta2 * np.abs(speed_kmh)) + beta3
 
 
 def friction_ratio(

@@ -43,8 +43,10 @@ def pade_coefficients(delay_s: float, order: int) -> tuple[np.ndarray, np.ndarra
     if order < 1:
         raise ConfigError("pade_order", order, "an integer >= 1")
     n = order
-    c = [factorial(2 * n - k) * factorial(n) / (factorial(2 * n) * factorial(k) * factorial(n - k))
-         for k in range(n + 1)]
+    c = [
+        factorial(2 * n - k) * factorial(n) / (factorial(2 * n) * factorial(k) * factorial(n - k))
+        for k in range(n + 1)
+    ]
     num = np.array([(-1) ** k * c[k] * delay_s**k for k in range(n + 1)])[::-1]
     den = np.array([c[k] * delay_s**k for k in range(n + 1)])[::-1]
     return num / den[0], den / den[0]
@@ -66,8 +68,9 @@ def _state_space(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 @njit(cache=True)
-def lag_delay_exact_step(params: np.ndarray, state: np.ndarray, buffer: np.ndarray,
-                         command: float) -> float:
+def lag_delay_exact_step(
+    params: np.ndarray, state: np.ndarray, buffer: np.ndarray, command: float
+) -> float:
     """Advance the exact model one step with ``command`` held; return the new output.
 
     ``state = [output, step_index]``; ``buffer`` has ``n + 2`` slots of past commands.
@@ -89,8 +92,9 @@ def lag_delay_exact_step(params: np.ndarray, state: np.ndarray, buffer: np.ndarr
 
 
 @njit(cache=True)
-def lti_step(a_d: np.ndarray, b_d: np.ndarray, c: np.ndarray, d: float, x: np.ndarray,
-             command: float) -> float:
+def lti_step(
+    a_d: np.ndarray, b_d: np.ndarray, c: np.ndarray, d: float, x: np.ndarray, command: float
+) -> float:
     """``x <- A_d x + B_d u``; return ``C x + D u`` (discrete state space, in place)."""
     x[:] = a_d @ x + b_d * command
     return float(c @ x + d * command)
@@ -115,9 +119,15 @@ class LagDelay:
         Output and past commands before the first step (steady state).
     """
 
-    def __init__(self, lag_s: float, delay_s: float, dt: float,
-                 method: Literal["exact", "pade"] = "exact", pade_order: int = 1,
-                 initial: float = 0.0) -> None:
+    def __init__(
+        self,
+        lag_s: float,
+        delay_s: float,
+        dt: float,
+        method: Literal["exact", "pade"] = "exact",
+        pade_order: int = 1,
+        initial: float = 0.0,
+    ) -> None:
         for name, value in (("lag_s", lag_s), ("delay_s", delay_s)):
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(name, value, "a finite number >= 0 [s]")
@@ -183,8 +193,7 @@ class LagDelay:
     def step(self, command: float) -> float:
         """Hold ``command`` for one step; return the output at the end of the step."""
         if self.method == "exact":
-            return float(lag_delay_exact_step(self.params, self.state, self.buffer,
-                                              float(command)))
+            return float(lag_delay_exact_step(self.params, self.state, self.buffer, float(command)))
         return lti_step(self._ad, self._bd, self._c, self._d, self.x, float(command))
 
     def response(self, commands: np.ndarray) -> np.ndarray:
@@ -208,8 +217,9 @@ def step_response_analytic(t: np.ndarray, lag_s: float, delay_s: float) -> np.nd
     return np.where(t >= delay_s, 1.0 - np.exp(-shifted / lag_s), 0.0)
 
 
-def pade_difference(lag_s: float, delay_s: float, dt: float, order: int,
-                    duration_s: float | None = None) -> float:
+def pade_difference(
+    lag_s: float, delay_s: float, dt: float, order: int, duration_s: float | None = None
+) -> float:
     """Largest difference [fraction of the step] between the exact and Pade step responses."""
     duration = duration_s if duration_s is not None else 10.0 * (lag_s + delay_s) + dt
     n = int(np.ceil(duration / dt))

@@ -33,8 +33,9 @@ MODE_BACKCALC = 1.0
 
 
 @njit(cache=True)
-def pid_step(params: np.ndarray, state: np.ndarray, setpoint: float, measurement: float,
-             dt: float) -> float:
+def pid_step(
+    params: np.ndarray, state: np.ndarray, setpoint: float, measurement: float, dt: float
+) -> float:
     """One PID update; mutates ``state`` and returns the limited output."""
     kp = params[P_KP]
     ki = params[P_KI]
@@ -149,8 +150,9 @@ class PID(Controller):
 
     def update(self, setpoint: float, measurement: float, dt: float) -> float:
         """Return the output for this sample; ``dt`` [s] since the previous one."""
-        return float(pid_step(self.params, self.state, float(setpoint), float(measurement),
-                              check_dt(dt)))
+        return float(
+            pid_step(self.params, self.state, float(setpoint), float(measurement), check_dt(dt))
+        )
 
     @property
     def components(self) -> dict[str, float]:
@@ -183,21 +185,36 @@ class TrackingPID(PID):
 
     name = "pid"
 
-    def __init__(self, kp: float, ki: float = 0.0, kd: float = 0.0, *,
-                 position_gain: float = 0.0, **kwargs: Any) -> None:
+    def __init__(
+        self,
+        kp: float,
+        ki: float = 0.0,
+        kd: float = 0.0,
+        *,
+        position_gain: float = 0.0,
+        **kwargs: Any,
+    ) -> None:
         super().__init__(kp, ki, kd, **kwargs)
         if not (np.isfinite(position_gain) and position_gain >= 0):
-            raise ValueError(f"position_gain = {position_gain!r} is not allowed: "
-                             "expected a finite number >= 0 [1/s]")
+            raise ValueError(
+                f"position_gain = {position_gain!r} is not allowed: "
+                "expected a finite number >= 0 [1/s]"
+            )
         self.params = np.append(self.params, position_gain)
 
     def update(self, setpoint: Any, measurement: Any, dt: float) -> float:
         """``setpoint = (x_ref [m], v_ref [m/s])``, ``measurement = (x, v)``."""
         x_ref, v_ref = setpoint
         x, v = measurement
-        return float(pid_step(self.params, self.state,
-                              tracking_setpoint(self.params, x_ref, v_ref, x), float(v),
-                              check_dt(dt)))
+        return float(
+            pid_step(
+                self.params,
+                self.state,
+                tracking_setpoint(self.params, x_ref, v_ref, x),
+                float(v),
+                check_dt(dt),
+            )
+        )
 
 
 @njit(cache=True)

@@ -37,16 +37,39 @@ from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_limits
 
-(P_C, P_KS, P_ALPHA, P_ETA, P_PHI, P_GAMMA1, P_GAMMA2, P_TH1_MIN, P_TH1_MAX, P_TH2_MIN,
- P_TH2_MAX, P_TH1_0, P_TH2_0, P_LO, P_HI) = range(15)
+(
+    P_C,
+    P_KS,
+    P_ALPHA,
+    P_ETA,
+    P_PHI,
+    P_GAMMA1,
+    P_GAMMA2,
+    P_TH1_MIN,
+    P_TH1_MAX,
+    P_TH2_MIN,
+    P_TH2_MAX,
+    P_TH1_0,
+    P_TH2_0,
+    P_LO,
+    P_HI,
+) = range(15)
 N_PARAMS = 15
 S_TH1, S_TH2, S_S, S_UEQ, S_UREACH, S_UROB = range(6)
 N_STATE = 6
 
 
 @njit(cache=True)
-def smarc_step(params: np.ndarray, state: np.ndarray, ref_x: float, ref_v: float, ref_a: float,
-               x: float, v: float, dt: float) -> float:
+def smarc_step(
+    params: np.ndarray,
+    state: np.ndarray,
+    ref_x: float,
+    ref_v: float,
+    ref_a: float,
+    x: float,
+    v: float,
+    dt: float,
+) -> float:
     """One SMARC update; mutates ``state`` (estimates) and returns ``u`` [m/s^2]."""
     c = params[P_C]
     e1 = x - ref_x
@@ -118,22 +141,46 @@ class SMARC(Controller):
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
         low, high = check_limits(output_limits)
-        values = {"c": c, "ks": ks, "alpha": alpha, "eta": eta, "phi": phi,
-                  "gamma1": gamma[0], "gamma2": gamma[1]}
+        values = {
+            "c": c,
+            "ks": ks,
+            "alpha": alpha,
+            "eta": eta,
+            "phi": phi,
+            "gamma1": gamma[0],
+            "gamma2": gamma[1],
+        }
         for label, value in values.items():
             if not (np.isfinite(value) and value >= 0):
-                raise ValueError(f"{label} = {value!r} is not allowed: expected a finite number >= 0")
+                raise ValueError(
+                    f"{label} = {value!r} is not allowed: expected a finite number >= 0"
+                )
         for i, (lo_b, hi_b) in enumerate(theta_bounds):
             if not lo_b <= theta0[i] <= hi_b:
                 raise ValueError(
                     f"theta0[{i}] = {theta0[i]!r} is not allowed: expected a value inside "
                     f"theta_bounds[{i}] = {(lo_b, hi_b)!r}"
                 )
-        self.params = np.array([
-            c, ks, alpha, eta, phi, gamma[0], gamma[1],
-            theta_bounds[0][0], theta_bounds[0][1], theta_bounds[1][0], theta_bounds[1][1],
-            theta0[0], theta0[1], low, high,
-        ], dtype=float)
+        self.params = np.array(
+            [
+                c,
+                ks,
+                alpha,
+                eta,
+                phi,
+                gamma[0],
+                gamma[1],
+                theta_bounds[0][0],
+                theta_bounds[0][1],
+                theta_bounds[1][0],
+                theta_bounds[1][1],
+                theta0[0],
+                theta0[1],
+                low,
+                high,
+            ],
+            dtype=float,
+        )
         self.state = np.zeros(N_STATE)
         self.reset()
 
@@ -142,13 +189,24 @@ class SMARC(Controller):
         self.state[S_TH1] = self.params[P_TH1_0]
         self.state[S_TH2] = self.params[P_TH2_0]
 
-    def update(self, reference: tuple[float, float, float], measurement: tuple[float, float],
-               dt: float) -> float:
+    def update(
+        self, reference: tuple[float, float, float], measurement: tuple[float, float], dt: float
+    ) -> float:
         """``reference = (x_d [m], v_d [m/s], a_d [m/s^2])``, ``measurement = (x, v)``."""
         xd, vd, ad = reference
         x, v = measurement
-        return float(smarc_step(self.params, self.state, float(xd), float(vd), float(ad),
-                                float(x), float(v), check_dt(dt)))
+        return float(
+            smarc_step(
+                self.params,
+                self.state,
+                float(xd),
+                float(vd),
+                float(ad),
+                float(x),
+                float(v),
+                check_dt(dt),
+            )
+        )
 
     @property
     def components(self) -> dict[str, float]:

@@ -16,8 +16,9 @@ an integrator (``k = 1``) behind the brake's delay and lag.
 from __future__ import annotations
 
 
-def simc_pid_integrating(k: float, theta_s: float, lag_s: float,
-                         tau_c_s: float | None = None) -> dict[str, float]:
+def simc_pid_integrating(
+    k: float, theta_s: float, lag_s: float, tau_c_s: float | None = None
+) -> dict[str, float]:
     """SIMC PID for ``k exp(-theta s) / (s (lag s + 1))`` in parallel form.
 
     Returns ``{"kp", "ki", "kd", "derivative_filter_s"}``; the derivative filter is a
@@ -34,8 +35,9 @@ def simc_pid_integrating(k: float, theta_s: float, lag_s: float,
     return {"kp": kp, "ki": kp / ti, "kd": kp * td, "derivative_filter_s": td / 10.0}
 
 
-def smarc_from_simc(k: float, theta_s: float, lag_s: float,
-                    tau_c_s: float | None = None) -> dict[str, float]:
+def smarc_from_simc(
+    k: float, theta_s: float, lag_s: float, tau_c_s: float | None = None
+) -> dict[str, float]:
     """SMARC surface and reaching gains by the SIMC PI rule.
 
     Near ``s = 0`` SMARC's linear feedback is ``-(ks + c) e2 - ks c e1`` (the

@@ -8,10 +8,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from railpilot.sim.result import SimResult  # noqa: E402
+from railpilot.sim.result import SimResult
 
 COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green"}
 
@@ -31,8 +31,12 @@ def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps:
     stop_m = first.meta["stop_point_m"]
     for name, r in results.items():
         i = _moving(r)
-        ax.plot(r["position_m"][i] - stop_m, r["speed_mps"][i] * 3.6, color=COLORS.get(name),
-                label=name.upper())
+        ax.plot(
+            r["position_m"][i] - stop_m,
+            r["speed_mps"][i] * 3.6,
+            color=COLORS.get(name),
+            label=name.upper(),
+        )
         zoom.plot(r["position_m"][i] - stop_m, r["speed_mps"][i] * 3.6, color=COLORS.get(name))
     i = _moving(first)
     ref_x = first["ref_position_m"] - stop_m
@@ -57,16 +61,26 @@ def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps:
 
 def deceleration(results: Mapping[str, SimResult], path: Path, limit_mps2: float) -> Path:
     """Fig. 5: deceleration over time, with the service limit; brake split below."""
-    fig, (ax, split) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True,
-                                    height_ratios=[3, 2])
+    fig, (ax, split) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True, height_ratios=[3, 2])
     first = next(iter(results.values()))
     for name, r in results.items():
         i = _moving(r)
         ax.plot(r["time_s"][i], -r["accel_mps2"][i], color=COLORS.get(name), label=name.upper())
-        split.plot(r["time_s"][i], r["electric_n"][i] / 1e3, color=COLORS.get(name), lw=1,
-                   label=f"{name.upper()} electric")
-        split.plot(r["time_s"][i], r["air_n"][i] / 1e3, color=COLORS.get(name), lw=1, ls="--",
-                   label=f"{name.upper()} air")
+        split.plot(
+            r["time_s"][i],
+            r["electric_n"][i] / 1e3,
+            color=COLORS.get(name),
+            lw=1,
+            label=f"{name.upper()} electric",
+        )
+        split.plot(
+            r["time_s"][i],
+            r["air_n"][i] / 1e3,
+            color=COLORS.get(name),
+            lw=1,
+            ls="--",
+            label=f"{name.upper()} air",
+        )
     i = _moving(first)
     ax.plot(first["time_s"][i], -first["ref_accel_mps2"][i], "k--", lw=1, label="target")
     ax.axhline(limit_mps2, color="red", lw=0.8, ls=":", label="max service deceleration")

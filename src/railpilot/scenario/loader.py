@@ -17,7 +17,8 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
     [brake]  delay_s, air_lag_s, electric_lag_s, jerk_limit_mps3, changeover_kmh,
              fade_rate_kn_per_s, prenotice_s, cutout_cars, cutout_time_s, beta = [b1, b2, b3]
     [reference]  shape = "smooth" | "constant", start_km, v0_kmh, decel_mps2,
-             jerk_mps3, final_decel_mps2, final_phase_speed_kmh
+             jerk_mps3, final_decel_mps2, final_phase_speed_kmh,
+             coast_s, ease_out
     [disturbance]  constant_kn, random_std_kn, random_hold_s, seed,
              regions = [{start_km, end_km, force_kn}]
     [ato]    mass_t, davis = [a0, a1, a2], lead_s
@@ -37,7 +38,7 @@ from railpilot.errors import ConfigError, ScenarioError
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.sim.disturbance import Disturbance, Region
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
-from railpilot.units import kmh_to_mps, km_post_to_m, kn_to_n, tonne_to_kg
+from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, tonne_to_kg
 from railpilot.vehicle.line import Line, Segment, Station
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
 
@@ -62,8 +63,14 @@ class _Table:
     def has(self, name: str) -> bool:
         return name in self.data
 
-    def number(self, name: str, default: float | None = None, *, gt: float | None = None,
-               ge: float | None = None) -> float:
+    def number(
+        self,
+        name: str,
+        default: float | None = None,
+        *,
+        gt: float | None = None,
+        ge: float | None = None,
+    ) -> float:
         """A finite number, optionally ``> gt`` or ``>= ge`` (checked in the file's units)."""
         self.used.add(name)
         if name not in self.data:
@@ -71,8 +78,12 @@ class _Table:
                 raise ScenarioError(self.key(name), None, "a number (the key is required)")
             return default
         value = self.data[name]
-        if (isinstance(value, bool) or not isinstance(value, int | float)
-                or value != value or value in (float("inf"), float("-inf"))):
+        if (
+            isinstance(value, bool)
+            or not isinstance(value, int | float)
+            or value != value
+            or value in (float("inf"), float("-inf"))
+        ):
             raise ScenarioError(self.key(name), value, "a finite number")
         if gt is not None and not value > gt:
             raise ScenarioError(self.key(name), value, f"a number > {gt:g}")
@@ -99,13 +110,23 @@ class _Table:
             raise ScenarioError(self.key(name), value, f"one of {', '.join(choices)}")
         return value
 
+    def flag(self, name: str, default: bool) -> bool:
+        self.used.add(name)
+        value = self.data.get(name, default)
+        if not isinstance(value, bool):
+            raise ScenarioError(self.key(name), value, "true or false")
+        return value
+
     def numbers(self, name: str, count: int) -> tuple[float, ...] | None:
         self.used.add(name)
         if name not in self.data:
             return None
         value = self.data[name]
-        if (not isinstance(value, list) or len(value) != count
-                or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)):
+        if (
+            not isinstance(value, list)
+            or len(value) != count
+            or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)
+        ):
             raise ScenarioError(self.key(name), value, f"a list of {count} numbers")
         return tuple(float(v) for v in value)
 
@@ -129,8 +150,11 @@ class _Table:
         unknown = sorted(set(self.data) - self.used)
         if unknown:
             known = ", ".join(sorted(self.used)) or "none"
-            raise ScenarioError(self.key(unknown[0]), self.data[unknown[0]],
-                                f"a known key instead of '{unknown[0]}' (known here: {known})")
+            raise ScenarioError(
+                self.key(unknown[0]),
+                self.data[unknown[0]],
+                f"a known key instead of '{unknown[0]}' (known here: {known})",
+            )
 
 
 def _build(path: str, make: Callable[[], T]) -> T:
@@ -147,28 +171,42 @@ def _build(path: str, make: Callable[[], T]) -> T:
 def _train(t: _Table) -> Train:
     davis = t.numbers("davis", 3) or (0.42, 0.0016, 0.000132)
     eb = t.table("electric_brake")
-    curve = _build("train.electric_brake", lambda: ElectricBrakeCurve(
-        max_force_n=kn_to_n(eb.number("max_force_kn", 380.0)),
-        max_power_w=eb.number("max_power_kw", 4800.0) * 1000.0))
+    curve = _build(
+        "train.electric_brake",
+        lambda: ElectricBrakeCurve(
+            max_force_n=kn_to_n(eb.number("max_force_kn", 380.0)),
+            max_power_w=eb.number("max_power_kw", 4800.0) * 1000.0,
+        ),
+    )
     eb.done()
-    train = _build("train", lambda: Train(
-        mass_kg=tonne_to_kg(t.number("mass_t", 536.0, gt=0)),
-        rotating_mass_factor=t.number("rotating_mass_factor", 0.06),
-        length_m=t.number("length_m", 140.0, gt=0),
-        davis_a0=davis[0], davis_a1=davis[1], davis_a2=davis[2],
-        max_service_decel_mps2=t.number("max_service_decel_mps2", 1.0, gt=0),
-        electric_brake=curve,
-        motor_cars=t.integer("motor_cars", 4)))
+    train = _build(
+        "train",
+        lambda: Train(
+            mass_kg=tonne_to_kg(t.number("mass_t", 536.0, gt=0)),
+            rotating_mass_factor=t.number("rotating_mass_factor", 0.06),
+            length_m=t.number("length_m", 140.0, gt=0),
+            davis_a0=davis[0],
+            davis_a1=davis[1],
+            davis_a2=davis[2],
+            max_service_decel_mps2=t.number("max_service_decel_mps2", 1.0, gt=0),
+            electric_brake=curve,
+            motor_cars=t.integer("motor_cars", 4),
+        ),
+    )
     t.done()
     return train
 
 
-def _segments(t: _Table, name: str, value_key: str, scale: Callable[[float], float]
-              ) -> tuple[Segment, ...]:
+def _segments(
+    t: _Table, name: str, value_key: str, scale: Callable[[float], float]
+) -> tuple[Segment, ...]:
     out = []
     for item in t.tables(name):
-        seg = Segment(km_post_to_m(item.number("start_km")), km_post_to_m(item.number("end_km")),
-                      scale(item.number(value_key)))
+        seg = Segment(
+            km_post_to_m(item.number("start_km")),
+            km_post_to_m(item.number("end_km")),
+            scale(item.number(value_key)),
+        )
         item.done()
         out.append(seg)
     return tuple(out)
@@ -180,8 +218,9 @@ def _line(t: _Table) -> Line:
     limits = _segments(t, "speed_limits", "limit_kmh", kmh_to_mps)
     stations = []
     for item in t.tables("stations"):
-        stations.append(Station(item.string("name", "station"),
-                                km_post_to_m(item.number("stop_km"))))
+        stations.append(
+            Station(item.string("name", "station"), km_post_to_m(item.number("stop_km")))
+        )
         item.done()
     line = _build("line", lambda: Line(gradients, curves, limits, tuple(stations)))
     t.done()
@@ -190,15 +229,23 @@ def _line(t: _Table) -> Line:
 
 def _brake(t: _Table) -> EPBrake:
     beta = t.numbers("beta", 3) or (0.138, 0.168, 0.221)
-    brake = _build("brake", lambda: EPBrake(
-        delay_s=t.number("delay_s", 0.3), air_lag_s=t.number("air_lag_s", 0.65),
-        electric_lag_s=t.number("electric_lag_s", 0.3),
-        jerk_limit_mps3=t.number("jerk_limit_mps3", 0.75),
-        changeover_kmh=t.number("changeover_kmh", 6.0),
-        fade_rate_n_per_s=kn_to_n(t.number("fade_rate_kn_per_s", 300.0)),
-        prenotice_s=t.number("prenotice_s", 0.65),
-        cutout_cars=t.integer("cutout_cars", 0), cutout_time_s=t.number("cutout_time_s", 0.0),
-        beta1=beta[0], beta2=beta[1], beta3=beta[2]))
+    brake = _build(
+        "brake",
+        lambda: EPBrake(
+            delay_s=t.number("delay_s", 0.3),
+            air_lag_s=t.number("air_lag_s", 0.65),
+            electric_lag_s=t.number("electric_lag_s", 0.3),
+            jerk_limit_mps3=t.number("jerk_limit_mps3", 0.75),
+            changeover_kmh=t.number("changeover_kmh", 6.0),
+            fade_rate_n_per_s=kn_to_n(t.number("fade_rate_kn_per_s", 300.0)),
+            prenotice_s=t.number("prenotice_s", 0.65),
+            cutout_cars=t.integer("cutout_cars", 0),
+            cutout_time_s=t.number("cutout_time_s", 0.0),
+            beta1=beta[0],
+            beta2=beta[1],
+            beta3=beta[2],
+        ),
+    )
     t.done()
     return brake
 
@@ -208,13 +255,23 @@ def _reference(t: _Table) -> BrakingCurve:
     start = km_post_to_m(t.number("start_km", 0.0))
     v0 = kmh_to_mps(t.number("v0_kmh", 72.0))
     if shape == "constant":
-        curve = _build("reference", lambda: constant_deceleration(
-            v0, t.number("decel_mps2"), start))
+        curve = _build(
+            "reference", lambda: constant_deceleration(v0, t.number("decel_mps2"), start)
+        )
     else:
-        curve = _build("reference", lambda: smooth_stop(
-            v0, t.number("decel_mps2", 0.5), t.number("jerk_mps3", 0.5),
-            t.number("final_decel_mps2", 0.3),
-            kmh_to_mps(t.number("final_phase_speed_kmh", 7.2)), start))
+        curve = _build(
+            "reference",
+            lambda: smooth_stop(
+                v0,
+                t.number("decel_mps2", 0.5),
+                t.number("jerk_mps3", 0.5),
+                t.number("final_decel_mps2", 0.3),
+                kmh_to_mps(t.number("final_phase_speed_kmh", 7.2)),
+                start,
+                coast_s=t.number("coast_s", 0.0),
+                ease_out=t.flag("ease_out", False),
+            ),
+        )
     t.done()
     return curve
 
@@ -222,24 +279,38 @@ def _reference(t: _Table) -> BrakingCurve:
 def _disturbance(t: _Table) -> Disturbance:
     regions = []
     for item in t.tables("regions"):
-        regions.append(Region(km_post_to_m(item.number("start_km")),
-                              km_post_to_m(item.number("end_km")),
-                              kn_to_n(item.number("force_kn"))))
+        regions.append(
+            Region(
+                km_post_to_m(item.number("start_km")),
+                km_post_to_m(item.number("end_km")),
+                kn_to_n(item.number("force_kn")),
+            )
+        )
         item.done()
-    dist = _build("disturbance", lambda: Disturbance(
-        constant_n=kn_to_n(t.number("constant_kn", 0.0)), regions=tuple(regions),
-        random_std_n=kn_to_n(t.number("random_std_kn", 0.0)),
-        random_hold_s=t.number("random_hold_s", 1.0), seed=t.integer("seed", 0)))
+    dist = _build(
+        "disturbance",
+        lambda: Disturbance(
+            constant_n=kn_to_n(t.number("constant_kn", 0.0)),
+            regions=tuple(regions),
+            random_std_n=kn_to_n(t.number("random_std_kn", 0.0)),
+            random_hold_s=t.number("random_hold_s", 1.0),
+            seed=t.integer("seed", 0),
+        ),
+    )
     t.done()
     return dist
 
 
 def _ato(t: _Table) -> ATOModel:
     mass_t = t.optional_number("mass_t")
-    ato = _build("ato", lambda: ATOModel(
-        mass_kg=tonne_to_kg(mass_t) if mass_t is not None else None,
-        davis=t.numbers("davis", 3),  # type: ignore[arg-type]
-        lead_s=t.optional_number("lead_s")))
+    ato = _build(
+        "ato",
+        lambda: ATOModel(
+            mass_kg=tonne_to_kg(mass_t) if mass_t is not None else None,
+            davis=t.numbers("davis", 3),  # type: ignore[arg-type]
+            lead_s=t.optional_number("lead_s"),
+        ),
+    )
     t.done()
     return ato
 
@@ -252,18 +323,27 @@ def _controller(t: _Table) -> ControllerSpec:
             sub = t.raw(ctrl)
             if not isinstance(sub, Mapping):
                 raise ScenarioError(t.key(ctrl), sub, "a table of controller parameters")
-            params[ctrl] = {k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
-                            if isinstance(v, list) else v for k, v in sub.items()}
+            params[ctrl] = {
+                k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
+                if isinstance(v, list)
+                else v
+                for k, v in sub.items()
+            }
     t.done()
     return ControllerSpec(name, params)
 
 
 def _sim(t: _Table) -> SimSettings:
     dt = t.number("dt_s", 0.01)
-    sim = _build("sim", lambda: SimSettings(
-        dt_s=dt, duration_s=t.number("duration_s", 70.0),
-        control_period_s=t.number("control_period_s", dt),
-        record_every=t.integer("record_every", 1)))
+    sim = _build(
+        "sim",
+        lambda: SimSettings(
+            dt_s=dt,
+            duration_s=t.number("duration_s", 70.0),
+            control_period_s=t.number("control_period_s", dt),
+            record_every=t.integer("record_every", 1),
+        ),
+    )
     t.done()
     return sim
 
@@ -289,15 +369,26 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
 
 def _check_consistency(scenario: Scenario) -> None:
     """Checks that need more than one table; raise before anything runs."""
-    _build("brake", lambda: scenario.brake.pack(
-        scenario.sim.dt_s, scenario.train.effective_mass_kg,
-        scenario.train.electric_brake.max_force_n, scenario.train.electric_brake.max_power_w,
-        scenario.train.motor_cars))
+    _build(
+        "brake",
+        lambda: scenario.brake.pack(
+            scenario.sim.dt_s,
+            scenario.train.effective_mass_kg,
+            scenario.train.electric_brake.max_force_n,
+            scenario.train.electric_brake.max_power_w,
+            scenario.train.motor_cars,
+        ),
+    )
     # a controller given parameters it does not take is an error now, not mid-run
     from railpilot.sim.run import make_controller
 
     for name in scenario.controller.params:
-        _build(f"controller.{name}", lambda name=name: make_controller(scenario, name))
+        try:
+            make_controller(scenario, name)
+        except ScenarioError:
+            raise
+        except ConfigError as exc:
+            raise ScenarioError(exc.field, exc.value, exc.allowed) from exc
 
 
 def read_toml(path: Path) -> dict[str, Any]:

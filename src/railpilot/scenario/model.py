@@ -75,24 +75,34 @@ class SimSettings:
             raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 3600] s")
         ratio = self.control_period_s / self.dt_s
         if not (np.isfinite(ratio) and ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
-            raise ConfigError("sim.control_period_s", self.control_period_s,
-                              f"a whole multiple (>= 1) of sim.dt_s = {self.dt_s}")
+            raise ConfigError(
+                "sim.control_period_s",
+                self.control_period_s,
+                f"a whole multiple (>= 1) of sim.dt_s = {self.dt_s}",
+            )
         if not (isinstance(self.record_every, int) and self.record_every >= 1):
             raise ConfigError("sim.record_every", self.record_every, "an integer >= 1")
 
     @property
     def n_steps(self) -> int:
-        return int(round(self.duration_s / self.dt_s))
+        return round(self.duration_s / self.dt_s)
 
     @property
     def control_every(self) -> int:
-        return int(round(self.control_period_s / self.dt_s))
+        return round(self.control_period_s / self.dt_s)
 
 
 def paper000_reference(start_m: float = 20_000.0) -> BrakingCurve:
     """Paper 000's non-linear target curve from 72 km/h (our shape; see docs)."""
-    return smooth_stop(kmh_to_mps(72.0), decel_mps2=0.5, jerk_mps3=0.5, final_decel_mps2=0.3,
-                       final_phase_speed_mps=2.0, start_m=start_m, coast_s=2.0)
+    return smooth_stop(
+        kmh_to_mps(72.0),
+        decel_mps2=0.5,
+        jerk_mps3=0.5,
+        final_decel_mps2=0.3,
+        final_phase_speed_mps=2.0,
+        start_m=start_m,
+        coast_s=2.0,
+    )
 
 
 @dataclass(frozen=True)

@@ -53,8 +53,9 @@ class Disturbance:
             raise ConfigError("disturbance.constant_n", self.constant_n, "a finite number")
         for i, r in enumerate(self.regions):
             if not (np.isfinite(r.start_m) and np.isfinite(r.end_m) and r.end_m > r.start_m):
-                raise ConfigError(f"disturbance.regions[{i}]", (r.start_m, r.end_m),
-                                  "finite start_m < end_m")
+                raise ConfigError(
+                    f"disturbance.regions[{i}]", (r.start_m, r.end_m), "finite start_m < end_m"
+                )
             if not np.isfinite(r.force_n):
                 raise ConfigError(f"disturbance.regions[{i}].force_n", r.force_n, "a finite number")
         if not (np.isfinite(self.random_std_n) and self.random_std_n >= 0):
@@ -66,15 +67,17 @@ class Disturbance:
         """``(starts, ends, forces)`` for the kernel."""
         if not self.regions:
             return np.zeros(0), np.zeros(0), np.zeros(0)
-        return (np.array([r.start_m for r in self.regions]),
-                np.array([r.end_m for r in self.regions]),
-                np.array([r.force_n for r in self.regions]))
+        return (
+            np.array([r.start_m for r in self.regions]),
+            np.array([r.end_m for r in self.regions]),
+            np.array([r.force_n for r in self.regions]),
+        )
 
     def random_series(self, n_steps: int, dt: float) -> np.ndarray:
         """The random force [N] at each of ``n_steps`` steps (zeros if none)."""
         if self.random_std_n == 0.0:
             return np.zeros(n_steps)
-        hold = max(int(round(self.random_hold_s / dt)), 1)
+        hold = max(round(self.random_hold_s / dt), 1)
         rng = np.random.default_rng(self.seed)
         values = rng.normal(0.0, self.random_std_n, size=n_steps // hold + 1)
         return np.repeat(values, hold)[:n_steps]

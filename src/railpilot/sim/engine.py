@@ -37,8 +37,21 @@ N_TRAIN = 7
 A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO = range(9)
 N_ATO = 9
 # metrics
-(M_STOP_ERR, M_STOP_T, M_MAX_VERR, M_RMS_VERR, M_VERR_CO, M_MAX_DECEL, M_MAX_JERK, M_MAX_XERR,
- M_E_ELEC, M_E_FRIC, M_FINAL_X, M_FINAL_V, M_STOPPED) = range(13)
+(
+    M_STOP_ERR,
+    M_STOP_T,
+    M_MAX_VERR,
+    M_RMS_VERR,
+    M_VERR_CO,
+    M_MAX_DECEL,
+    M_MAX_JERK,
+    M_MAX_XERR,
+    M_E_ELEC,
+    M_E_FRIC,
+    M_FINAL_X,
+    M_FINAL_V,
+    M_STOPPED,
+) = range(13)
 N_METRICS = 13
 N_CHANNELS = 11
 
@@ -54,8 +67,15 @@ def _step_lookup(edges: np.ndarray, values: np.ndarray, x: float) -> float:
 
 
 @njit(cache=True)
-def _disturbance(x: float, k: int, const_n: float, reg_start: np.ndarray, reg_end: np.ndarray,
-                 reg_force: np.ndarray, random_n: np.ndarray) -> float:
+def _disturbance(
+    x: float,
+    k: int,
+    const_n: float,
+    reg_start: np.ndarray,
+    reg_end: np.ndarray,
+    reg_force: np.ndarray,
+    random_n: np.ndarray,
+) -> float:
     f = const_n
     for i in range(reg_start.shape[0]):
         if reg_start[i] <= x < reg_end[i]:
@@ -67,16 +87,31 @@ def _disturbance(x: float, k: int, const_n: float, reg_start: np.ndarray, reg_en
 
 @njit(cache=True)
 def run_ep_kernel(
-    n_steps: int, dt: float, control_every: int,
+    n_steps: int,
+    dt: float,
+    control_every: int,
     train: np.ndarray,
-    brake_p: np.ndarray, brake_s: np.ndarray, brake_buf: np.ndarray,
-    line_edges: np.ndarray, line_values: np.ndarray,
-    dist_const: float, reg_start: np.ndarray, reg_end: np.ndarray, reg_force: np.ndarray,
+    brake_p: np.ndarray,
+    brake_s: np.ndarray,
+    brake_buf: np.ndarray,
+    line_edges: np.ndarray,
+    line_values: np.ndarray,
+    dist_const: float,
+    reg_start: np.ndarray,
+    reg_end: np.ndarray,
+    reg_force: np.ndarray,
     random_n: np.ndarray,
-    ref_x: np.ndarray, ref_v: np.ndarray, ref_a: np.ndarray, ref_a_ff: np.ndarray,
-    ato: np.ndarray, kind: int, ctrl_p: np.ndarray, ctrl_s: np.ndarray,
+    ref_x: np.ndarray,
+    ref_v: np.ndarray,
+    ref_a: np.ndarray,
+    ref_a_ff: np.ndarray,
+    ato: np.ndarray,
+    kind: int,
+    ctrl_p: np.ndarray,
+    ctrl_s: np.ndarray,
     speed_noise: np.ndarray,
-    record: np.ndarray, record_every: int,
+    record: np.ndarray,
+    record_every: int,
     metrics: np.ndarray,
 ) -> None:
     """Run one scenario for ``n_steps``; fill ``metrics`` and, if it has rows, ``record``.
@@ -124,22 +159,38 @@ def run_ep_kernel(
                 v_meas += speed_noise[k]
             v_kmh_m = abs(v_meas) * 3.6
             # the ATO's own resistance model, as a deceleration [m/s^2]
-            r_model = (ato[A_A0] + ato[A_A1] * v_kmh_m + ato[A_A2] * v_kmh_m * v_kmh_m) \
-                * G / 1000.0 * ato[A_MASS] / ato[A_MEFF_LW]
+            r_model = (
+                (ato[A_A0] + ato[A_A1] * v_kmh_m + ato[A_A2] * v_kmh_m * v_kmh_m)
+                * G
+                / 1000.0
+                * ato[A_MASS]
+                / ato[A_MEFF_LW]
+            )
             if kind == KIND_PID:
                 v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x)
                 u = ref_a_ff[k] + r_model + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
             else:
-                u = smarc_step(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x, v_meas,
-                               ctrl_dt) + r_model
+                u = (
+                    smarc_step(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x, v_meas, ctrl_dt)
+                    + r_model
+                )
             u = min(max(u, ato[A_UMIN]), ato[A_UMAX])
         demand = -u * ato[A_MEFF_LW] if u < 0.0 else 0.0
         # --- brake and train
         e_n, air_n = ep_brake_step(brake_p, brake_s, brake_buf, demand, v, t, dt)
         if moving:
             v_kmh = v * 3.6
-            resist = (train[T_A0] + train[T_A1] * v_kmh + train[T_A2] * v_kmh * v_kmh
-                      + _step_lookup(line_edges, line_values, x)) * mass * G / 1000.0
+            resist = (
+                (
+                    train[T_A0]
+                    + train[T_A1] * v_kmh
+                    + train[T_A2] * v_kmh * v_kmh
+                    + _step_lookup(line_edges, line_values, x)
+                )
+                * mass
+                * G
+                / 1000.0
+            )
             dist = _disturbance(x, k, dist_const, reg_start, reg_end, reg_force, random_n)
             a = (dist - e_n - air_n - resist) / m_eff
             v_next = v + a * dt
@@ -158,11 +209,14 @@ def run_ep_kernel(
                 v = v_next
             if a < 0.0 and -a > max_decel:
                 max_decel = -a
+            # jerk of the brake's deceleration: what the jerk limit and comfort govern
+            # (a step in an outside force is not the brake's doing)
+            brake_decel = (e_n + air_n) / m_eff
             if k > 0 and moving:
-                jerk = abs(a - a_prev) / dt
+                jerk = abs(brake_decel - a_prev) / dt
                 if jerk > max_jerk:
                     max_jerk = jerk
-            a_prev = a
+            a_prev = brake_decel
         else:
             a = 0.0
         if n_rec > 0 and k % record_every == 0:

@@ -132,26 +132,38 @@ def smooth_stop(
         End with deceleration easing to zero (softer, but the last second of the
         stop then depends on the brake's lag); default: stop at ``final_decel``.
     """
-    for name, value in (("reference.v0", v0_mps), ("reference.decel", decel_mps2),
-                        ("reference.jerk", jerk_mps3), ("reference.final_decel", final_decel_mps2),
-                        ("reference.final_phase_speed", final_phase_speed_mps)):
+    for name, value in (
+        ("reference.v0", v0_mps),
+        ("reference.decel", decel_mps2),
+        ("reference.jerk", jerk_mps3),
+        ("reference.final_decel", final_decel_mps2),
+        ("reference.final_phase_speed", final_phase_speed_mps),
+    ):
         _check_positive(name, value)
     if final_decel_mps2 > decel_mps2:
-        raise ConfigError("reference.final_decel", final_decel_mps2,
-                          f"a deceleration <= reference.decel ({decel_mps2})")
+        raise ConfigError(
+            "reference.final_decel",
+            final_decel_mps2,
+            f"a deceleration <= reference.decel ({decel_mps2})",
+        )
     a, af, j = decel_mps2, final_decel_mps2, jerk_mps3
     loss_in = a * a / (2 * j)
     loss_ease = (a + af) / 2 * (a - af) / j
     loss_out = af * af / (2 * j) if ease_out else 0.0
     if final_phase_speed_mps <= loss_out:
-        raise ConfigError("reference.final_phase_speed", final_phase_speed_mps,
-                          f"a speed > {loss_out:.4g} m/s (what the final ease-out loses)")
+        raise ConfigError(
+            "reference.final_phase_speed",
+            final_phase_speed_mps,
+            f"a speed > {loss_out:.4g} m/s (what the final ease-out loses)",
+        )
     t_final = (final_phase_speed_mps - loss_out) / af
     t_main = (v0_mps - loss_in - loss_ease - final_phase_speed_mps) / a
     if t_main < 0:
-        raise ConfigError("reference.v0", v0_mps,
-                          "a speed high enough for the phases (raise v0 or lower the jerk/"
-                          "final_phase_speed)")
+        raise ConfigError(
+            "reference.v0",
+            v0_mps,
+            "a speed high enough for the phases (raise v0 or lower the jerk/final_phase_speed)",
+        )
     if not (np.isfinite(coast_s) and coast_s >= 0):
         raise ConfigError("reference.coast_s", coast_s, "a finite number >= 0")
     durations = [coast_s, a / j, t_main, (a - af) / j, t_final]

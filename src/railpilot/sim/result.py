@@ -38,7 +38,8 @@ METRICS: dict[str, str] = {
     "rms_speed_error_mps": "RMS of v - v_ref(t) while moving [m/s]",
     "speed_error_at_changeover_mps": "|v - v_ref(t)| when v first drops to the changeover speed",
     "max_decel_mps2": "max deceleration while moving [m/s^2]",
-    "max_jerk_mps3": "max |da/dt| while moving [m/s^3] (the stopping instant excluded)",
+    "max_jerk_mps3": "max |d/dt (E + A) / m_eff| while moving [m/s^3]: jerk of the brake's "
+    "deceleration (outside-force steps and the stopping instant excluded)",
     "max_position_error_m": "max |x - x_ref(t)| while moving [m]",
     "energy_electric_j": "energy taken by the electric brake (regenerated) [J]",
     "energy_friction_j": "energy dissipated by the shoes [J]",
@@ -81,5 +82,7 @@ class SimResult:
 
     def summary(self) -> dict[str, float]:
         """Metrics as plain floats (JSON-ready; nan becomes None)."""
-        return {k: (None if not np.isfinite(v) else float(v))  # type: ignore[misc]
-                for k, v in self.metrics.items()}
+        return {
+            k: (None if not np.isfinite(v) else float(v))  # type: ignore[misc]
+            for k, v in self.metrics.items()
+        }

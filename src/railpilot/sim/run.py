@@ -31,11 +31,20 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     # tau_c and the remaining free parameters come from the grid search that
     # docs/paper-000-smarc-ep.md describes (same grid effort for both controllers)
     if name == "pid":
-        return dict(simc_pid_integrating(1.0, delay, lag, tau_c_s=0.75 * delay),
-                    anti_windup="backcalc", position_gain=0.8)
+        return dict(
+            simc_pid_integrating(1.0, delay, lag, tau_c_s=0.75 * delay),
+            anti_windup="backcalc",
+            position_gain=0.8,
+        )
     if name == "smarc":
-        return dict(smarc_from_simc(1.0, delay, lag, tau_c_s=0.25 * (delay + lag)), alpha=1.0,
-                    eta=0.1, phi=0.05, gamma=(0.05, 0.2), theta_bounds=((0.7, 1.5), (-0.3, 0.3)))
+        return dict(
+            smarc_from_simc(1.0, delay, lag, tau_c_s=0.25 * (delay + lag)),
+            alpha=1.0,
+            eta=0.1,
+            phi=0.05,
+            gamma=(0.05, 0.2),
+            theta_bounds=((0.7, 1.5), (-0.3, 0.3)),
+        )
     raise ConfigError("controller.name", name, "one of pid, smarc")
 
 
@@ -58,8 +67,11 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
     allowed = _parameter_names(cls)
     for key, value in overrides.items():
         if key not in allowed:
-            raise ConfigError(f"controller.{name}.{key}", value,
-                              f"a parameter of {cls.__name__}: {', '.join(allowed)}")
+            raise ConfigError(
+                f"controller.{name}.{key}",
+                value,
+                f"a parameter of {cls.__name__}: {', '.join(allowed)}",
+            )
     params.update(overrides)
     a_max = scenario.train.max_service_decel_mps2
     try:
@@ -80,8 +92,13 @@ def _parameter_names(cls: type) -> list[str]:
         if init is None:
             continue
         params = inspect.signature(init).parameters.values()
-        names += [p.name for p in params if p.name != "self" and p.kind not in
-                  (p.VAR_KEYWORD, p.VAR_POSITIONAL) and p.name not in names]
+        names += [
+            p.name
+            for p in params
+            if p.name != "self"
+            and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)
+            and p.name not in names
+        ]
         if not any(p.kind == p.VAR_KEYWORD for p in params):
             break
     return names
@@ -126,8 +143,7 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
     _, _, ref_a_ff = ref.sample(t + delay + lag)
     ato = scenario.ato
     mass_lw = ato.mass_kg if ato.mass_kg is not None else train.mass_kg
-    davis = ato.davis if ato.davis is not None else (train.davis_a0, train.davis_a1,
-                                                    train.davis_a2)
+    davis = ato.davis if ato.davis is not None else (train.davis_a0, train.davis_a1, train.davis_a2)
     ato_arr = np.zeros(engine.N_ATO)
     ato_arr[engine.A_MEFF_LW] = mass_lw * (1 + train.rotating_mass_factor)
     ato_arr[engine.A_A0], ato_arr[engine.A_A1], ato_arr[engine.A_A2] = davis
@@ -136,11 +152,24 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
     ato_arr[engine.A_UMAX] = 0.0
     ato_arr[engine.A_STOP_M] = ref.stop_m
     ato_arr[engine.A_V_CO] = kmh_to_mps(scenario.brake.changeover_kmh)
-    train_arr = np.array([train.effective_mass_kg, train.mass_kg, train.davis_a0,
-                          train.davis_a1, train.davis_a2, ref.start_m, ref.v0_mps])
-    brake_p = scenario.brake.pack(dt, ato_arr[engine.A_MEFF_LW],
-                                  train.electric_brake.max_force_n,
-                                  train.electric_brake.max_power_w, train.motor_cars)
+    train_arr = np.array(
+        [
+            train.effective_mass_kg,
+            train.mass_kg,
+            train.davis_a0,
+            train.davis_a1,
+            train.davis_a2,
+            ref.start_m,
+            ref.v0_mps,
+        ]
+    )
+    brake_p = scenario.brake.pack(
+        dt,
+        ato_arr[engine.A_MEFF_LW],
+        train.electric_brake.max_force_n,
+        train.electric_brake.max_power_w,
+        train.motor_cars,
+    )
     edges, values = scenario.line.resistance_profile()
     reg_start, reg_end, reg_force = scenario.disturbance.region_arrays()
     if isinstance(controller, TrackingPID):
@@ -148,16 +177,31 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
     elif isinstance(controller, SMARC):
         kind = engine.KIND_SMARC
     else:
-        raise ConfigError("controller", type(controller).__name__,
-                          "a TrackingPID or SMARC controller")
+        raise ConfigError(
+            "controller", type(controller).__name__, "a TrackingPID or SMARC controller"
+        )
     controller.reset()
     return KernelInputs(
-        n_steps=n, dt=dt, control_every=sim.control_every, train=train_arr, brake_p=brake_p,
-        line_edges=edges, line_values=values,
-        dist_const=scenario.disturbance.constant_n, reg_start=reg_start, reg_end=reg_end,
-        reg_force=reg_force, random_n=scenario.disturbance.random_series(n, dt),
-        ref_x=ref_x, ref_v=ref_v, ref_a=ref_a, ref_a_ff=ref_a_ff, ato=ato_arr, kind=kind,
-        ctrl_p=controller.params.copy(), ctrl_s0=controller.state.copy(),
+        n_steps=n,
+        dt=dt,
+        control_every=sim.control_every,
+        train=train_arr,
+        brake_p=brake_p,
+        line_edges=edges,
+        line_values=values,
+        dist_const=scenario.disturbance.constant_n,
+        reg_start=reg_start,
+        reg_end=reg_end,
+        reg_force=reg_force,
+        random_n=scenario.disturbance.random_series(n, dt),
+        ref_x=ref_x,
+        ref_v=ref_v,
+        ref_a=ref_a,
+        ref_a_ff=ref_a_ff,
+        ato=ato_arr,
+        kind=kind,
+        ctrl_p=controller.params.copy(),
+        ctrl_s0=controller.state.copy(),
     )
 
 
@@ -169,10 +213,31 @@ def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np
     record = np.zeros((n_rec, engine.N_CHANNELS))
     metrics = np.zeros(engine.N_METRICS)
     engine.run_ep_kernel(
-        inp.n_steps, inp.dt, inp.control_every, inp.train, inp.brake_p, brake_s, brake_buf,
-        inp.line_edges, inp.line_values, inp.dist_const, inp.reg_start, inp.reg_end,
-        inp.reg_force, inp.random_n, inp.ref_x, inp.ref_v, inp.ref_a, inp.ref_a_ff, inp.ato,
-        inp.kind, inp.ctrl_p, inp.ctrl_s0.copy(), np.zeros(0), record, max(record_every, 1),
+        inp.n_steps,
+        inp.dt,
+        inp.control_every,
+        inp.train,
+        inp.brake_p,
+        brake_s,
+        brake_buf,
+        inp.line_edges,
+        inp.line_values,
+        inp.dist_const,
+        inp.reg_start,
+        inp.reg_end,
+        inp.reg_force,
+        inp.random_n,
+        inp.ref_x,
+        inp.ref_v,
+        inp.ref_a,
+        inp.ref_a_ff,
+        inp.ato,
+        inp.kind,
+        inp.ctrl_p,
+        inp.ctrl_s0.copy(),
+        np.zeros(0),
+        record,
+        max(record_every, 1),
         metrics,
     )
     return metrics, record
@@ -196,12 +261,17 @@ def metrics_dict(metrics: np.ndarray) -> dict[str, float]:
 
 def simulate(scenario: Scenario, controller: Controller | str | None = None) -> SimResult:
     """Run ``scenario`` with its controller (or the one given) and record everything."""
-    ctrl = controller if isinstance(controller, Controller) else make_controller(scenario,
-                                                                                 controller)
+    ctrl = (
+        controller if isinstance(controller, Controller) else make_controller(scenario, controller)
+    )
     inp = prepare(scenario, ctrl)
     metrics, record = run_inputs(inp, record_every=scenario.sim.record_every)
     series = {name: record[:, i].copy() for i, (name, _) in enumerate(CHANNELS)}
-    meta = {"scenario": scenario.name, "controller": ctrl.name,
-            "stop_point_m": scenario.reference.stop_m, "dt_s": scenario.sim.dt_s,
-            "stopped": bool(metrics[engine.M_STOPPED])}
+    meta = {
+        "scenario": scenario.name,
+        "controller": ctrl.name,
+        "stop_point_m": scenario.reference.stop_m,
+        "dt_s": scenario.sim.dt_s,
+        "stopped": bool(metrics[engine.M_STOPPED]),
+    }
     return SimResult(series=series, metrics=metrics_dict(metrics), meta=meta)

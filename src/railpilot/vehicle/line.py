@@ -24,7 +24,9 @@ class Segment:
     value: float
 
     def check(self, where: str) -> None:
-        if not (np.isfinite(self.start_m) and np.isfinite(self.end_m) and self.end_m > self.start_m):
+        if not (
+            np.isfinite(self.start_m) and np.isfinite(self.end_m) and self.end_m > self.start_m
+        ):
             raise ConfigError(
                 where, (self.start_m, self.end_m), "a segment with finite start_m < end_m"
             )
@@ -71,10 +73,13 @@ class Line:
         ``[edges[i], edges[i+1])`` and 0 outside ``[edges[0], edges[-1])``. Gradient
         (1 N/kN per mille) and curve (600/R N/kN) resistances add where they overlap.
         """
-        pieces = [(s.start_m, s.end_m, float(gradient_permille_to_specific(s.value)))
-                  for s in self.gradients]
-        pieces += [(s.start_m, s.end_m, float(curve_specific_resistance(s.value)))
-                   for s in self.curves]
+        pieces = [
+            (s.start_m, s.end_m, float(gradient_permille_to_specific(s.value)))
+            for s in self.gradients
+        ]
+        pieces += [
+            (s.start_m, s.end_m, float(curve_specific_resistance(s.value))) for s in self.curves
+        ]
         if not pieces:
             return np.array([0.0, 1.0]), np.array([0.0])
         edges = np.unique(np.array([p[0] for p in pieces] + [p[1] for p in pieces]))

@@ -39,7 +39,7 @@ class ElectricBrakeCurve:
     def max_force(self, speed_mps: Num) -> Num:
         """Available electric brake force [N] at ``speed_mps`` [m/s]."""
         speed = np.maximum(np.abs(speed_mps), 1e-9)
-        return np.minimum(self.max_force_n, self.max_power_w / speed)  # type: ignore[return-value]
+        return np.minimum(self.max_force_n, self.max_power_w / speed)
 
 
 @dataclass(frozen=True)

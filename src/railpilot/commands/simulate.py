@@ -1,0 +1,81 @@
+"""``railpilot simulate SCENARIO.toml``: run one scenario file."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from railpilot.commands._common import log, print_json
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    p = subparsers.add_parser(
+        "simulate",
+        help="run one scenario file",
+        description="Run a scenario TOML file and print its metrics; with --out, write the "
+        "time series (CSV and Parquet) and figures.",
+    )
+    p.add_argument("scenario", type=Path, help="scenario TOML file")
+    p.add_argument(
+        "--controller", choices=("pid", "smarc"), help="override the scenario's controller"
+    )
+    p.add_argument("--out", type=Path, help="folder for time series and figures")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from railpilot.scenario.loader import load_scenario, read_toml
+
+    data = read_toml(args.scenario)
+    if data.get("kind") == "eddy-brake":
+        return _run_eddy(args, data)
+    scenario = load_scenario(args.scenario)  # validates everything before running
+    from railpilot.sim.run import simulate
+
+    result = simulate(scenario, args.controller)
+    files: list[str] = []
+    if args.out is not None:
+        from railpilot.report import ep_plots
+        from railpilot.units import kmh_to_mps
+
+        args.out.mkdir(parents=True, exist_ok=True)
+        stem = result.meta["controller"]
+        files.append(str(result.to_csv(args.out / f"{stem}.csv")))
+        files.append(str(result.to_parquet(args.out / f"{stem}.parquet")))
+        co = kmh_to_mps(scenario.brake.changeover_kmh)
+        runs = {stem: result}
+        files.append(
+            str(ep_plots.speed_distance(runs, args.out / f"{stem}_speed_distance.png", co))
+        )
+        files.append(str(ep_plots.speed_error(runs, args.out / f"{stem}_speed_error.png", co)))
+    if args.json:
+        print_json(
+            {
+                "scenario": scenario.name,
+                "controller": result.meta["controller"],
+                "metrics": result.summary(),
+                "files": files,
+            }
+        )
+    else:
+        print(f"{scenario.name}  controller={result.meta['controller']}")
+        for key, value in result.summary().items():
+            print(f"  {key:32s} {value if value is None else f'{value:.4g}'}")
+        for f in files:
+            log(f"wrote {f}")
+    return 0
+
+
+def _run_eddy(args: argparse.Namespace, data: dict) -> int:
+    from railpilot.eddy.scenario import EddyScenario
+    from railpilot.eddy.simulate import run_scenario
+
+    scenario = EddyScenario.from_mapping(data)
+    summary = run_scenario(scenario, controller=args.controller, out_dir=args.out)
+    if args.json:
+        print_json(summary)
+    else:
+        for key, value in summary.items():
+            print(f"  {key:32s} {value}")
+    return 0
