@@ -22,6 +22,7 @@ from railpilot.errors import RailpilotError
 COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.simulate",
     "railpilot.commands.reproduce",
+    "railpilot.commands.montecarlo",
     "railpilot.commands.demo",
 )
 

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import Any
 
 from railpilot.commands._common import log, print_json
 
@@ -67,15 +68,30 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _run_eddy(args: argparse.Namespace, data: dict) -> int:
+def _run_eddy(args: argparse.Namespace, data: dict[str, Any]) -> int:
+    """An ``eddy-brake`` scenario (paper 003): torque control of the eddy-current brake."""
     from railpilot.eddy.scenario import EddyScenario
-    from railpilot.eddy.simulate import run_scenario
 
-    scenario = EddyScenario.from_mapping(data)
-    summary = run_scenario(scenario, controller=args.controller, out_dir=args.out)
+    scenario = EddyScenario.from_mapping(data, base_dir=args.scenario.parent)
+    result, metrics = scenario.run(args.controller)
+    files: list[str] = []
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        path = args.out / f"{scenario.name}.csv"
+        result.to_pandas().to_csv(path)
+        files.append(str(path))
+    summary = {
+        "scenario": scenario.name,
+        "controller": args.controller or scenario.controller,
+        "metrics": metrics.to_dict(),
+        "files": files,
+    }
     if args.json:
         print_json(summary)
     else:
-        for key, value in summary.items():
+        print(f"{scenario.name}  controller={summary['controller']}")
+        for key, value in summary["metrics"].items():  # type: ignore[attr-defined]
             print(f"  {key:32s} {value}")
+        for f in files:
+            log(f"wrote {f}")
     return 0

@@ -8,5 +8,6 @@ Python object share one implementation.
 
 from railpilot.control.base import Controller
 from railpilot.control.pid import PID
+from railpilot.control.qsmc import QSMC
 
-__all__ = ["PID", "Controller"]
+__all__ = ["PID", "QSMC", "Controller"]

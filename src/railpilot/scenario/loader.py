@@ -28,15 +28,21 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
 
 from __future__ import annotations
 
+import re
 import tomllib
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
 
+import numpy as np
+
 from railpilot.brakes.ep_blend import EPBrake
+from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.errors import ConfigError, ScenarioError
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
+from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.disturbance import Disturbance, Region
+from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
 from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, tonne_to_kg
 from railpilot.vehicle.line import Line, Segment, Station
@@ -157,15 +163,58 @@ class _Table:
             )
 
 
+#: SI field names of the typed constructors -> (the key as written in the file, the
+#: value converted back to the file's unit), so an error names what the user wrote
+_FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
+    "train.mass_kg": ("train.mass_t", lambda v: v / 1000.0),
+    "ato.mass_kg": ("ato.mass_t", lambda v: v / 1000.0),
+    "train.electric_brake.max_force_n": ("train.electric_brake.max_force_kn", lambda v: v / 1000.0),
+    "train.electric_brake.max_power_w": ("train.electric_brake.max_power_kw", lambda v: v / 1000.0),
+    "brake.fade_rate_n_per_s": ("brake.fade_rate_kn_per_s", lambda v: v / 1000.0),
+    "train.davis_a0": ("train.davis[0]", lambda v: v),
+    "train.davis_a1": ("train.davis[1]", lambda v: v),
+    "train.davis_a2": ("train.davis[2]", lambda v: v),
+    "brake.beta1": ("brake.beta[0]", lambda v: v),
+    "brake.beta2": ("brake.beta[1]", lambda v: v),
+    "brake.beta3": ("brake.beta[2]", lambda v: v),
+    "reference.v0": ("reference.v0_kmh", lambda v: v * 3.6),
+    "reference.decel": ("reference.decel_mps2", lambda v: v),
+    "reference.jerk": ("reference.jerk_mps3", lambda v: v),
+    "reference.final_decel": ("reference.final_decel_mps2", lambda v: v),
+    "reference.final_phase_speed": ("reference.final_phase_speed_kmh", lambda v: v * 3.6),
+    "disturbance.constant_n": ("disturbance.constant_kn", lambda v: v / 1000.0),
+    "disturbance.random_std_n": ("disturbance.random_std_kn", lambda v: v / 1000.0),
+}
+#: fields whose value is a (start, end) pair in metres; the file writes km
+_KM_SPANS = re.compile(r"^(line\.(gradients|curves|speed_limits)|disturbance\.regions)\[\d+\]$")
+
+
+def _file_error(exc: ConfigError) -> ScenarioError:
+    """The constructor's error in the file's words: key as written, value in its unit."""
+    if exc.field in _FILE_KEYS:
+        key, convert = _FILE_KEYS[exc.field]
+        try:
+            value = convert(exc.value)
+        except TypeError:
+            value = exc.value
+        return ScenarioError(key, value, exc.allowed)
+    if _KM_SPANS.match(exc.field) and isinstance(exc.value, tuple):
+        return ScenarioError(
+            exc.field, tuple(v / 1000.0 for v in exc.value), "finite start_km < end_km"
+        )
+    return ScenarioError(exc.field, exc.value, exc.allowed)
+
+
 def _build(path: str, make: Callable[[], T]) -> T:
-    """Run a constructor; turn its ConfigError into a ScenarioError at ``path``."""
+    """Run a constructor; turn its ConfigError into a ScenarioError in the file's words."""
     try:
         return make()
     except ScenarioError:
         raise
     except ConfigError as exc:
-        field = exc.field if exc.field.startswith(path.split(".")[0]) else f"{path}.{exc.field}"
-        raise ScenarioError(field, exc.value, exc.allowed) from exc
+        if not exc.field.startswith(path.split(".")[0]):
+            exc = ConfigError(f"{path}.{exc.field}", exc.value, exc.allowed)
+        raise _file_error(exc) from exc
 
 
 def _train(t: _Table) -> Train:
@@ -227,7 +276,19 @@ def _line(t: _Table) -> Line:
     return line
 
 
-def _brake(t: _Table) -> EPBrake:
+def _brake(t: _Table) -> EPBrake | LagDelayBrake:
+    model = t.string("model", "ep-blended", ("ep-blended", "lag-delay"))
+    if model == "lag-delay":
+        ld = _build(
+            "brake",
+            lambda: LagDelayBrake(
+                lag_s=t.number("lag_s", 0.5),
+                delay_s=t.number("delay_s", 1.2),
+                max_decel_mps2=t.number("max_decel_mps2", 1.0, gt=0),
+            ),
+        )
+        t.done()
+        return ld
     beta = t.numbers("beta", 3) or (0.138, 0.168, 0.221)
     brake = _build(
         "brake",
@@ -256,7 +317,10 @@ def _reference(t: _Table) -> BrakingCurve:
     v0 = kmh_to_mps(t.number("v0_kmh", 72.0))
     if shape == "constant":
         curve = _build(
-            "reference", lambda: constant_deceleration(v0, t.number("decel_mps2"), start)
+            "reference",
+            lambda: constant_deceleration(
+                v0, t.number("decel_mps2"), start, coast_s=t.number("coast_s", 0.0)
+            ),
         )
     else:
         curve = _build(
@@ -276,14 +340,21 @@ def _reference(t: _Table) -> BrakingCurve:
     return curve
 
 
-def _disturbance(t: _Table) -> Disturbance:
+def _disturbance(t: _Table, effective_mass_kg: float) -> Disturbance:
     regions = []
     for item in t.tables("regions"):
+        if item.has("accel_mps2") == item.has("force_kn"):
+            raise ScenarioError(
+                item.key("force_kn"), None, "exactly one of force_kn or accel_mps2 in each region"
+            )
+        force = (
+            kn_to_n(item.number("force_kn"))
+            if item.has("force_kn")
+            else item.number("accel_mps2") * effective_mass_kg
+        )
         regions.append(
             Region(
-                km_post_to_m(item.number("start_km")),
-                km_post_to_m(item.number("end_km")),
-                kn_to_n(item.number("force_kn")),
+                km_post_to_m(item.number("start_km")), km_post_to_m(item.number("end_km")), force
             )
         )
         item.done()
@@ -294,11 +365,81 @@ def _disturbance(t: _Table) -> Disturbance:
             regions=tuple(regions),
             random_std_n=kn_to_n(t.number("random_std_kn", 0.0)),
             random_hold_s=t.number("random_hold_s", 1.0),
+            target_fraction=t.number("target_fraction", 0.0),
             seed=t.integer("seed", 0),
         ),
     )
     t.done()
     return dist
+
+
+def _realism(t: _Table) -> Realism:
+    balises = t.raw("balises_km")
+    if balises is None:
+        balises = []
+    if not isinstance(balises, list) or any(
+        isinstance(b, bool) or not isinstance(b, int | float) for b in balises
+    ):
+        raise ScenarioError(t.key("balises_km"), balises, "a list of km posts")
+    realism = _build(
+        "realism",
+        lambda: Realism(
+            speed_noise_std_mps=t.number("speed_noise_std_mps", 0.0, ge=0),
+            speed_resolution_mps=t.number("speed_resolution_mps", 0.0, ge=0),
+            wheel_scale_error=t.number("wheel_scale_error", 0.0),
+            slide_slip=t.number("slide_slip", 0.0),
+            balises_m=tuple(km_post_to_m(float(b)) for b in balises),
+            adhesion=t.number("adhesion", 0.0, ge=0),
+            slide_ratio=t.number("slide_ratio", 0.8),
+            notches=t.integer("notches", 0),
+            seed=t.integer("seed", 0),
+        ),
+    )
+    t.done()
+    return realism
+
+
+def _montecarlo(t: _Table) -> MonteCarloSpec | None:
+    if not t.data:
+        return None
+    vary = []
+    table = t.table("vary")
+    for key in list(table.data):
+        item = table.table(key)
+        kind = item.string("dist", "uniform", ("uniform", "normal"))
+        if kind == "uniform":
+            dist = _build(
+                "montecarlo.vary",
+                lambda item=item, key=key: Distribution(
+                    key, "uniform", item.number("min"), item.number("max")
+                ),
+            )
+        else:
+            dist = _build(
+                "montecarlo.vary",
+                lambda item=item, key=key: Distribution(
+                    key,
+                    "normal",
+                    item.number("min", -np.inf),
+                    item.number("max", np.inf),
+                    mean=item.number("mean"),
+                    std=item.number("std"),
+                ),
+            )
+        item.done()
+        vary.append(dist)
+    table.done()
+    spec = _build(
+        "montecarlo",
+        lambda: MonteCarloSpec(
+            runs=t.integer("runs", 1000),
+            seed=t.integer("seed", 0),
+            vary=tuple(vary),
+            chunk=t.integer("chunk", 500),
+        ),
+    )
+    t.done()
+    return spec
 
 
 def _ato(t: _Table) -> ATOModel:
@@ -348,8 +489,10 @@ def _sim(t: _Table) -> SimSettings:
     return sim
 
 
-def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
-    """Build and validate a scenario from a parsed TOML mapping."""
+def scenario_and_spec_from_mapping(
+    data: Mapping[str, Any],
+) -> tuple[Scenario, MonteCarloSpec | None]:
+    """Build and validate a scenario and its optional ``[montecarlo]`` spec."""
     top = _Table(data, "")
     top.string("kind", "ep-braking", ("ep-braking",))
     name = top.string("name", "scenario")
@@ -357,31 +500,37 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
     line = _line(top.table("line"))
     brake = _brake(top.table("brake"))
     reference = _reference(top.table("reference"))
-    disturbance = _disturbance(top.table("disturbance"))
+    disturbance = _disturbance(top.table("disturbance"), train.effective_mass_kg)
     ato = _ato(top.table("ato"))
     controller = _controller(top.table("controller"))
     sim = _sim(top.table("sim"))
+    realism = _realism(top.table("realism"))
+    montecarlo = _montecarlo(top.table("montecarlo"))
     top.done()
-    scenario = Scenario(name, train, line, brake, reference, disturbance, ato, controller, sim)
+    scenario = Scenario(
+        name, train, line, brake, reference, disturbance, ato, controller, sim, realism
+    )
     _check_consistency(scenario)
-    return scenario
+    if montecarlo is not None:
+        # every sampled key must apply to this scenario (e.g. brake.lag_s needs a lag-delay
+        # brake): try each on its lower bound now, not in the middle of a sweep
+        from railpilot.sim.batch import check_spec
+
+        _build("montecarlo", lambda: check_spec(scenario, montecarlo))
+    return scenario, montecarlo
+
+
+def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
+    """Build and validate a scenario from a parsed TOML mapping."""
+    return scenario_and_spec_from_mapping(data)[0]
 
 
 def _check_consistency(scenario: Scenario) -> None:
     """Checks that need more than one table; raise before anything runs."""
-    _build(
-        "brake",
-        lambda: scenario.brake.pack(
-            scenario.sim.dt_s,
-            scenario.train.effective_mass_kg,
-            scenario.train.electric_brake.max_force_n,
-            scenario.train.electric_brake.max_power_w,
-            scenario.train.motor_cars,
-        ),
-    )
-    # a controller given parameters it does not take is an error now, not mid-run
-    from railpilot.sim.run import make_controller
+    from railpilot.sim.run import make_controller, pack_brake
 
+    _build("brake", lambda: pack_brake(scenario, scenario.train.effective_mass_kg))
+    # a controller given parameters it does not take is an error now, not mid-run
     for name in scenario.controller.params:
         try:
             make_controller(scenario, name)
@@ -405,3 +554,8 @@ def read_toml(path: Path) -> dict[str, Any]:
 def load_scenario(path: Path | str) -> Scenario:
     """Read and validate an ``ep-braking`` scenario file."""
     return scenario_from_mapping(read_toml(Path(path)))
+
+
+def load_scenario_and_spec(path: Path | str) -> tuple[Scenario, MonteCarloSpec | None]:
+    """Read and validate a scenario file and its ``[montecarlo]`` table, if any."""
+    return scenario_and_spec_from_mapping(read_toml(Path(path)))

@@ -8,14 +8,16 @@ from typing import Any
 import numpy as np
 
 from railpilot.brakes.ep_blend import EPBrake
+from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.errors import ConfigError
 from railpilot.sim.disturbance import Disturbance
+from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, smooth_stop
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line
 from railpilot.vehicle.train import Train
 
-CONTROLLERS = ("pid", "smarc")
+CONTROLLERS = ("pid", "smarc", "qsmc")
 
 
 @dataclass(frozen=True)
@@ -40,7 +42,7 @@ class ATOModel:
 
     def __post_init__(self) -> None:
         if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
-            raise ConfigError("ato.mass_t", self.mass_kg, "a finite mass > 0")
+            raise ConfigError("ato.mass_kg", self.mass_kg, "a finite mass > 0")
         if self.lead_s is not None and not (np.isfinite(self.lead_s) and self.lead_s >= 0):
             raise ConfigError("ato.lead_s", self.lead_s, "a finite number >= 0 [s]")
         if self.davis is not None and not all(np.isfinite(c) and c >= 0 for c in self.davis):
@@ -112,9 +114,34 @@ class Scenario:
     name: str = "scenario"
     train: Train = field(default_factory=Train)
     line: Line = field(default_factory=Line)
-    brake: EPBrake = field(default_factory=EPBrake)
+    brake: EPBrake | LagDelayBrake = field(default_factory=EPBrake)
     reference: BrakingCurve = field(default_factory=paper000_reference)
     disturbance: Disturbance = field(default_factory=Disturbance)
     ato: ATOModel = field(default_factory=ATOModel)
     controller: ControllerSpec = field(default_factory=ControllerSpec)
     sim: SimSettings = field(default_factory=SimSettings)
+    realism: Realism = field(default_factory=Realism)
+    #: the train's speed at t = 0 [m/s]; None = the reference's (a Monte Carlo can vary it)
+    initial_speed_mps: float | None = None
+    #: true brake effort relative to what the brake manager assumes (friction error) [-]
+    brake_gain: float = 1.0
+
+    def __post_init__(self) -> None:
+        if self.initial_speed_mps is not None and not (
+            np.isfinite(self.initial_speed_mps) and self.initial_speed_mps >= 0
+        ):
+            raise ConfigError("initial_speed_kmh", self.initial_speed_mps, "a speed >= 0")
+        if not (np.isfinite(self.brake_gain) and self.brake_gain >= 0):
+            raise ConfigError("brake.gain", self.brake_gain, "a factor >= 0")
+
+    @property
+    def changeover_kmh(self) -> float:
+        """Electric/air changeover speed [km/h]; 0 for a brake without one."""
+        return self.brake.changeover_kmh if isinstance(self.brake, EPBrake) else 0.0
+
+    @property
+    def brake_lead_s(self) -> tuple[float, float]:
+        """The plant brake's ``(delay, lag)`` [s] (the air path for the EP brake)."""
+        if isinstance(self.brake, EPBrake):
+            return self.brake.delay_s, self.brake.air_lag_s
+        return self.brake.delay_s, self.brake.lag_s

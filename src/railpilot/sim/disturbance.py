@@ -37,7 +37,11 @@ class Disturbance:
         Standard deviation of a random force [N]: a new normal value every
         ``random_hold_s`` seconds, held in between (piecewise constant).
     random_hold_s
-        How long each random value holds [s].
+        How long each random value holds [s] (also for ``target_fraction``).
+    target_fraction
+        Amplitude of a random disturbance acceleration proportional to the target
+        acceleration (paper 002: 0.023 for -2.3 % to +2.3 %): a new uniform factor in
+        ``[-target_fraction, target_fraction]`` every ``random_hold_s`` seconds.
     seed
         Seed of the random force; the same seed gives the same numbers.
     """
@@ -46,6 +50,7 @@ class Disturbance:
     regions: tuple[Region, ...] = ()
     random_std_n: float = 0.0
     random_hold_s: float = 1.0
+    target_fraction: float = 0.0
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -60,6 +65,12 @@ class Disturbance:
                 raise ConfigError(f"disturbance.regions[{i}].force_n", r.force_n, "a finite number")
         if not (np.isfinite(self.random_std_n) and self.random_std_n >= 0):
             raise ConfigError("disturbance.random_std_n", self.random_std_n, "a number >= 0")
+        if not (np.isfinite(self.target_fraction) and 0 <= self.target_fraction < 1):
+            raise ConfigError(
+                "disturbance.target_fraction", self.target_fraction, "a fraction in [0, 1)"
+            )
+        if not (isinstance(self.seed, int | np.integer) and self.seed >= 0):
+            raise ConfigError("disturbance.seed", self.seed, "an integer >= 0")
         if not (np.isfinite(self.random_hold_s) and self.random_hold_s > 0):
             raise ConfigError("disturbance.random_hold_s", self.random_hold_s, "a number > 0")
 
@@ -73,11 +84,30 @@ class Disturbance:
             np.array([r.force_n for r in self.regions]),
         )
 
-    def random_series(self, n_steps: int, dt: float) -> np.ndarray:
-        """The random force [N] at each of ``n_steps`` steps (zeros if none)."""
-        if self.random_std_n == 0.0:
-            return np.zeros(n_steps)
+    def random_series(
+        self,
+        n_steps: int,
+        dt: float,
+        target_accel_mps2: np.ndarray,
+        effective_mass_kg: float,
+        seed: int | None = None,
+    ) -> np.ndarray:
+        """The random force [N] at each of ``n_steps`` steps (empty if there is none).
+
+        ``target_accel_mps2`` (the reference acceleration per step) scales the
+        ``target_fraction`` part; ``seed`` overrides the scenario's (Monte Carlo runs).
+        """
+        if self.random_std_n == 0.0 and self.target_fraction == 0.0:
+            return np.zeros(0)
         hold = max(round(self.random_hold_s / dt), 1)
-        rng = np.random.default_rng(self.seed)
-        values = rng.normal(0.0, self.random_std_n, size=n_steps // hold + 1)
-        return np.repeat(values, hold)[:n_steps]
+        rng = np.random.default_rng(self.seed if seed is None else seed)
+        n_values = n_steps // hold + 1
+        force = np.zeros(n_steps)
+        if self.random_std_n > 0.0:
+            force += np.repeat(rng.normal(0.0, self.random_std_n, n_values), hold)[:n_steps]
+        if self.target_fraction > 0.0:
+            factor = rng.uniform(-self.target_fraction, self.target_fraction, n_values)
+            force += (
+                np.repeat(factor, hold)[:n_steps] * target_accel_mps2[:n_steps] * effective_mass_kg
+            )
+        return force

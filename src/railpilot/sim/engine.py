@@ -1,21 +1,28 @@
-"""The fixed-step simulator: train + line + EP brake + controller + reference.
+"""The fixed-step simulator: train + line + brake + controller + reference.
 
 The simulator owns time. Everything that runs per step is one Numba kernel,
-:func:`run_ep_kernel`, working on flat float64 arrays, so the same compiled code runs
+:func:`run_kernel`, working on flat float64 arrays, so the same compiled code runs
 one scenario (with a recorder) or a batch of many (metrics only, in parallel; see
-railpilot.sim.batch). The public entry point is :func:`simulate`.
+railpilot.sim.batch). The public entry point is railpilot.sim.run.simulate.
 
 Per step ``k`` (``t = k dt``):
 
 1. every ``control_every`` steps the controller sees the *measured* position and
-   speed and the reference, and returns a commanded acceleration ``u`` [m/s^2],
-   held until its next update (the ATO cycle);
-2. the ATO turns ``u`` into a brake force demand with its load-weighed mass and its
-   own resistance model (feed-forward), and the EP brake (brakes/ep_blend.py)
-   delivers electric and air force;
-3. the train moves: ``m (1 + gamma) a = -(E + A + R_davis + R_line) + D``, integrated
-   exactly for the constant acceleration of the step (so a stop inside a step lands
-   where ``v^2 / (2 a)`` says).
+   speed (odometry with its errors, speed noise and quantisation; exact if the
+   realism effects are off) and the reference, and returns a commanded acceleration
+   ``u`` [m/s^2], held until its next update (the ATO cycle);
+2. the ATO turns ``u`` into a brake command: with its own resistance model added as a
+   feed-forward, quantised to notches if the brake has them, and
+   * ``ACT_EP`` (paper 000): a force demand through the load-weighed mass into the
+     EP blended brake (brakes/ep_blend.py);
+   * ``ACT_LAG_DELAY`` (paper 002): a command ``uc = F^-1(u)`` through the static map
+     ``F`` (linear, ``F(uc) = -a_max uc``), a first-order lag ``tau`` and a transport
+     delay ``sigma`` (brakes/lag_delay.py, exact);
+3. adhesion limits the brake force at the rail (a slide delivers a fraction of it and
+   the wheels turn slower than the train, fooling odometry);
+4. the train moves: ``m (1 + gamma) a = D - B - R_davis - R_line``; the acceleration is
+   constant over the step, so position is advanced exactly and a stop inside a step
+   lands where ``v^2 / (2 a)`` says.
 """
 
 from __future__ import annotations
@@ -23,19 +30,33 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from railpilot.brakes.ep_blend import P_BUF_LEN as EP_BUF_LEN
 from railpilot.brakes.ep_blend import ep_brake_step
+from railpilot.brakes.lag_delay import E_LEN, lag_delay_exact_step
 from railpilot.control.pid import pid_step, tracking_setpoint
+from railpilot.control.qsmc import qsmc_step as _qsmc
 from railpilot.control.smarc import smarc_step
 
 KIND_PID = 0
 KIND_SMARC = 1
+KIND_QSMC = 2
 
-# train params
-T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0 = range(7)
-N_TRAIN = 7
+ACT_EP = 0
+ACT_LAG_DELAY = 1
+#: index of ``a_max`` [m/s^2] in a lag-delay brake's params (after LagDelay's five)
+LD_A_MAX = 5
+N_LD_PARAMS = 6
+
+# train params (T_BRAKE_GAIN: the brake's true effort relative to nominal, e.g. shoe
+# friction above or below what the brake manager assumes; the air path for EP brakes)
+T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0, T_BRAKE_GAIN = range(8)
+N_TRAIN = 8
 # ATO params: the controllers' side's view of the train
 A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO = range(9)
 N_ATO = 9
+# realism params (all 0 = the idealised papers' world)
+(R_SPEED_RES, R_WHEEL_SCALE, R_SLIDE_SLIP, R_ADHESION, R_SLIDE_RATIO, R_NOTCHES) = range(6)
+N_REAL = 6
 # metrics
 (
     M_STOP_ERR,
@@ -51,9 +72,11 @@ N_ATO = 9
     M_FINAL_X,
     M_FINAL_V,
     M_STOPPED,
-) = range(13)
-N_METRICS = 13
-N_CHANNELS = 11
+    M_ODO_ERR,
+    M_SLIDE_T,
+) = range(15)
+N_METRICS = 15
+N_CHANNELS = 12
 
 G = 9.8
 
@@ -86,14 +109,26 @@ def _disturbance(
 
 
 @njit(cache=True)
-def run_ep_kernel(
+def brake_buffer_length(act_kind: int, brake_p: np.ndarray) -> int:
+    """Slots of command history the brake needs (its delay line)."""
+    if act_kind == ACT_EP:
+        return int(brake_p[EP_BUF_LEN])
+    return int(brake_p[E_LEN])
+
+
+@njit(cache=True)
+def brake_state_length(act_kind: int) -> int:
+    return 7 if act_kind == ACT_EP else 2
+
+
+@njit(cache=True)
+def run_kernel(
     n_steps: int,
     dt: float,
     control_every: int,
     train: np.ndarray,
+    act_kind: int,
     brake_p: np.ndarray,
-    brake_s: np.ndarray,
-    brake_buf: np.ndarray,
     line_edges: np.ndarray,
     line_values: np.ndarray,
     dist_const: float,
@@ -108,8 +143,10 @@ def run_ep_kernel(
     ato: np.ndarray,
     kind: int,
     ctrl_p: np.ndarray,
-    ctrl_s: np.ndarray,
+    ctrl_s0: np.ndarray,
+    real: np.ndarray,
     speed_noise: np.ndarray,
+    balises: np.ndarray,
     record: np.ndarray,
     record_every: int,
     metrics: np.ndarray,
@@ -118,15 +155,23 @@ def run_ep_kernel(
 
     ``ref_*`` have ``n_steps + 1`` samples; ``ref_a_ff`` is the reference acceleration
     the feed-forward uses (shifted ahead by the ATO's model of the brake's lead).
+    ``random_n`` (force [N] per step) and ``speed_noise`` ([m/s] per controller update)
+    may be empty. The controller's state is copied from ``ctrl_s0``, so the inputs are
+    never changed and a batch can share them.
     """
+    ctrl_s = ctrl_s0.copy()
+    brake_s = np.zeros(brake_state_length(act_kind))
+    brake_buf = np.zeros(brake_buffer_length(act_kind, brake_p))
     m_eff = train[T_MEFF]
     mass = train[T_MASS]
     x = train[T_X0]
     v = train[T_V0]
+    x_odo = x
     a = 0.0
-    a_prev = 0.0
+    brake_prev = 0.0
     u = 0.0
     moving = True
+    sliding = False
     stop_t = np.nan
     max_verr = 0.0
     sum_verr2 = 0.0
@@ -137,10 +182,20 @@ def run_ep_kernel(
     max_xerr = 0.0
     e_elec = 0.0
     e_fric = 0.0
+    slide_t = 0.0
     n_rec = record.shape[0]
     ctrl_dt = dt * control_every
+    next_balise = 0
+    while next_balise < balises.shape[0] and balises[next_balise] <= x:
+        next_balise += 1
+    adhesion_n = real[R_ADHESION] * mass * G
+    notches = real[R_NOTCHES]
     for k in range(n_steps):
         t = k * dt
+        # the state at time t, recorded with this step's command and forces
+        x_t = x
+        v_t = v
+        x_odo_t = x_odo
         if moving:
             verr = v - ref_v[k]
             if abs(verr) > max_verr:
@@ -154,9 +209,12 @@ def run_ep_kernel(
                 verr_co = abs(verr)
         # --- controller (ATO cycle), on measured signals
         if k % control_every == 0:
-            v_meas = v
+            wheel_v = v * (1.0 - real[R_SLIDE_SLIP]) if sliding else v
+            v_meas = wheel_v * (1.0 + real[R_WHEEL_SCALE])
             if speed_noise.shape[0] > 0:
-                v_meas += speed_noise[k]
+                v_meas += speed_noise[k // control_every]
+            if real[R_SPEED_RES] > 0.0:
+                v_meas = np.round(v_meas / real[R_SPEED_RES]) * real[R_SPEED_RES]
             v_kmh_m = abs(v_meas) * 3.6
             # the ATO's own resistance model, as a deceleration [m/s^2]
             r_model = (
@@ -167,18 +225,51 @@ def run_ep_kernel(
                 / ato[A_MEFF_LW]
             )
             if kind == KIND_PID:
-                v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x)
+                v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x_odo)
                 u = ref_a_ff[k] + r_model + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
-            else:
+            elif kind == KIND_SMARC:
                 u = (
-                    smarc_step(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x, v_meas, ctrl_dt)
+                    smarc_step(
+                        ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas, ctrl_dt
+                    )
+                    + r_model
+                )
+            else:
+                # QSMC's internal brake model is fed the reference acceleration the ATO
+                # wants delivered one lead from now, so its predicted reference error
+                # sees a braking point coming (with ref_a[k] it starts one lead late)
+                u = (
+                    _qsmc(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas,
+                          ctrl_dt)
                     + r_model
                 )
             u = min(max(u, ato[A_UMIN]), ato[A_UMAX])
-        demand = -u * ato[A_MEFF_LW] if u < 0.0 else 0.0
-        # --- brake and train
-        e_n, air_n = ep_brake_step(brake_p, brake_s, brake_buf, demand, v, t, dt)
+            if notches > 0.0:
+                # brake commands in notches: the nearest one to the wanted command
+                step = -ato[A_UMIN] / notches
+                u = np.round(u / step) * step
+        # --- brake
+        if act_kind == ACT_EP:
+            demand = -u * ato[A_MEFF_LW] if u < 0.0 else 0.0
+            e_n, air_n = ep_brake_step(brake_p, brake_s, brake_buf, demand, v, t, dt)
+            air_n *= train[T_BRAKE_GAIN]
+        else:
+            uc = min(max(-u / brake_p[LD_A_MAX], 0.0), 1.0)  # F^-1: command in [0, 1]
+            demand = uc * brake_p[LD_A_MAX] * m_eff
+            ac = lag_delay_exact_step(brake_p, brake_s, brake_buf, -brake_p[LD_A_MAX] * uc)
+            e_n = 0.0
+            air_n = -ac * m_eff * train[T_BRAKE_GAIN]
         if moving:
+            brake_n = e_n + air_n
+            sliding = False
+            if adhesion_n > 0.0 and brake_n > adhesion_n:
+                # slide: the wheel-rail contact gives only part of the peak adhesion
+                scale = adhesion_n * real[R_SLIDE_RATIO] / brake_n
+                e_n *= scale
+                air_n *= scale
+                brake_n = e_n + air_n
+                sliding = True
+                slide_t += dt
             v_kmh = v * 3.6
             resist = (
                 (
@@ -192,8 +283,9 @@ def run_ep_kernel(
                 / 1000.0
             )
             dist = _disturbance(x, k, dist_const, reg_start, reg_end, reg_force, random_n)
-            a = (dist - e_n - air_n - resist) / m_eff
+            a = (dist - brake_n - resist) / m_eff
             v_next = v + a * dt
+            x_before = x
             if v_next <= 0.0 and a < 0.0:
                 h = v / (-a)
                 x += v * h / 2.0
@@ -207,24 +299,32 @@ def run_ep_kernel(
                 e_elec += e_n * (v + v_next) * dt / 2.0
                 e_fric += air_n * (v + v_next) * dt / 2.0
                 v = v_next
+            # odometry: wheel revolutions times the (mis-)calibrated circumference
+            travelled = x - x_before
+            if sliding:
+                travelled *= 1.0 - real[R_SLIDE_SLIP]
+            x_odo += travelled * (1.0 + real[R_WHEEL_SCALE])
+            while next_balise < balises.shape[0] and balises[next_balise] <= x:
+                x_odo = balises[next_balise] + (x - balises[next_balise])
+                next_balise += 1
             if a < 0.0 and -a > max_decel:
                 max_decel = -a
             # jerk of the brake's deceleration: what the jerk limit and comfort govern
             # (a step in an outside force is not the brake's doing)
-            brake_decel = (e_n + air_n) / m_eff
+            brake_decel = brake_n / m_eff
             if k > 0 and moving:
-                jerk = abs(brake_decel - a_prev) / dt
+                jerk = abs(brake_decel - brake_prev) / dt
                 if jerk > max_jerk:
                     max_jerk = jerk
-            a_prev = brake_decel
+            brake_prev = brake_decel
         else:
             a = 0.0
         if n_rec > 0 and k % record_every == 0:
             r = k // record_every
             if r < n_rec:
                 record[r, 0] = t
-                record[r, 1] = x
-                record[r, 2] = v
+                record[r, 1] = x_t
+                record[r, 2] = v_t
                 record[r, 3] = a
                 record[r, 4] = ref_x[k]
                 record[r, 5] = ref_v[k]
@@ -233,6 +333,7 @@ def run_ep_kernel(
                 record[r, 8] = demand
                 record[r, 9] = e_n
                 record[r, 10] = air_n
+                record[r, 11] = x_odo_t
     metrics[M_STOP_ERR] = x - ato[A_STOP_M] if not moving else np.nan
     metrics[M_STOP_T] = stop_t
     metrics[M_MAX_VERR] = max_verr
@@ -246,3 +347,5 @@ def run_ep_kernel(
     metrics[M_FINAL_X] = x
     metrics[M_FINAL_V] = v
     metrics[M_STOPPED] = 0.0 if moving else 1.0
+    metrics[M_ODO_ERR] = x_odo - x
+    metrics[M_SLIDE_T] = slide_t

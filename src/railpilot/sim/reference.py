@@ -30,6 +30,9 @@ class BrakingCurve:
         Position [m], speed [m/s] and acceleration [m/s^2] at t = 0.
     durations_s, jerks_mps3
         The phases: each lasts ``durations_s[i]`` with jerk ``jerks_mps3[i]``.
+    jumps_mps2
+        Optional step in acceleration at the start of each phase (a constant
+        deceleration that starts at once); empty = none.
     """
 
     start_m: float
@@ -37,17 +40,21 @@ class BrakingCurve:
     a0_mps2: float
     durations_s: tuple[float, ...]
     jerks_mps3: tuple[float, ...]
+    jumps_mps2: tuple[float, ...] = ()
 
     def _knots(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """Time, position, speed, acceleration at the start of every phase and the end."""
+        """Time, position, speed at the start of every phase and the end, and the
+        acceleration at the start of every phase (after its jump) and the end."""
+        jumps = self.jumps_mps2 or (0.0,) * len(self.durations_s)
         t = [0.0]
         x = [self.start_m]
         v = [self.v0_mps]
-        a = [self.a0_mps2]
-        for h, j in zip(self.durations_s, self.jerks_mps3, strict=True):
+        a = [self.a0_mps2 + jumps[0]]
+        for i, (h, j) in enumerate(zip(self.durations_s, self.jerks_mps3, strict=True)):
             x.append(x[-1] + v[-1] * h + a[-1] * h**2 / 2 + j * h**3 / 6)
             v.append(v[-1] + a[-1] * h + j * h**2 / 2)
-            a.append(a[-1] + j * h)
+            nxt = jumps[i + 1] if i + 1 < len(jumps) else 0.0
+            a.append(a[-1] + j * h + nxt)
             t.append(t[-1] + h)
         return np.array(t), np.array(x), np.array(v), np.array(a)
 
@@ -89,11 +96,30 @@ class BrakingCurve:
         return np.interp(position_m, x, v, left=self.v0_mps, right=0.0)
 
 
-def constant_deceleration(v0_mps: float, decel_mps2: float, start_m: float = 0.0) -> BrakingCurve:
-    """Brake at a constant ``decel_mps2`` [m/s^2, > 0] from ``v0_mps`` [m/s] to rest."""
+def constant_deceleration(
+    v0_mps: float, decel_mps2: float, start_m: float = 0.0, coast_s: float = 0.0
+) -> BrakingCurve:
+    """Brake at a constant ``decel_mps2`` [m/s^2, > 0] from ``v0_mps`` [m/s] to rest.
+
+    The braking point is ``start_m``; with ``coast_s`` the curve first runs that long
+    at ``v0`` before it (so a delayed brake can be commanded ahead of the point).
+    The stop point is ``start_m + v0^2 / (2 decel)``.
+    """
     _check_positive("reference.v0", v0_mps)
     _check_positive("reference.decel", decel_mps2)
-    return BrakingCurve(start_m, v0_mps, -decel_mps2, (v0_mps / decel_mps2,), (0.0,))
+    if not (np.isfinite(coast_s) and coast_s >= 0):
+        raise ConfigError("reference.coast_s", coast_s, "a finite number >= 0")
+    if coast_s == 0.0:
+        return BrakingCurve(start_m, v0_mps, -decel_mps2, (v0_mps / decel_mps2,), (0.0,))
+    # coasting, then a jump to full deceleration at the braking point
+    return BrakingCurve(
+        start_m - v0_mps * coast_s,
+        v0_mps,
+        0.0,
+        (coast_s, v0_mps / decel_mps2),
+        (0.0, 0.0),
+        (0.0, -decel_mps2),
+    )
 
 
 def smooth_stop(

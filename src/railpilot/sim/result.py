@@ -20,14 +20,15 @@ CHANNELS: tuple[tuple[str, str], ...] = (
     ("time_s", "time [s]"),
     ("position_m", "train head position [m]"),
     ("speed_mps", "speed [m/s]"),
-    ("accel_mps2", "acceleration [m/s^2]"),
+    ("accel_mps2", "acceleration over the step from time_s to time_s + dt [m/s^2]"),
     ("ref_position_m", "reference position [m]"),
     ("ref_speed_mps", "reference speed [m/s]"),
     ("ref_accel_mps2", "reference acceleration [m/s^2]"),
     ("command_mps2", "controller command, acceleration [m/s^2]"),
     ("demand_n", "brake force demand [N]"),
     ("electric_n", "electric brake force [N]"),
-    ("air_n", "air (shoe) brake force [N]"),
+    ("air_n", "air (shoe) brake force [N]; the whole brake force for a lag-delay brake"),
+    ("odometer_m", "position the ATO believes (odometry) [m]"),
 )
 
 #: Metrics every run reports, with units and definitions (docs/metrics.md).
@@ -43,6 +44,8 @@ METRICS: dict[str, str] = {
     "max_position_error_m": "max |x - x_ref(t)| while moving [m]",
     "energy_electric_j": "energy taken by the electric brake (regenerated) [J]",
     "energy_friction_j": "energy dissipated by the shoes [J]",
+    "odometry_error_at_stop_m": "odometer position minus true position at the end [m]",
+    "slide_time_s": "time the wheels slid (adhesion exceeded) [s]",
 }
 
 

@@ -1,4 +1,9 @@
-"""Public entry point: run a scenario, get a :class:`~railpilot.sim.result.SimResult`."""
+"""Public entry point: run a scenario, get a :class:`~railpilot.sim.result.SimResult`.
+
+:func:`prepare` packs a scenario and a controller into the kernel's flat arrays
+(:class:`KernelInputs`), :func:`run_inputs` runs them once, :func:`simulate` does both
+and names the results. railpilot.sim.batch reuses ``prepare`` for Monte Carlo runs.
+"""
 
 from __future__ import annotations
 
@@ -8,80 +13,74 @@ from typing import Any
 
 import numpy as np
 
-from railpilot.brakes.ep_blend import N_STATE as N_BRAKE_STATE
+from railpilot.brakes.ep_blend import EPBrake
 from railpilot.control.base import Controller
 from railpilot.control.pid import TrackingPID
+from railpilot.control.qsmc import QSMC
 from railpilot.control.smarc import SMARC
-from railpilot.control.tuning import simc_pid_integrating, smarc_from_simc
+from railpilot.control.tuning import (
+    qsmc_defaults,
+    simc_pid_integrating,
+    smarc_from_simc,
+    tracking_position_gain,
+)
 from railpilot.errors import ConfigError
-from railpilot.scenario.model import Scenario
+from railpilot.scenario.model import CONTROLLERS, Scenario
+from railpilot.sim.reference import BrakingCurve
 from railpilot.sim import engine
 from railpilot.sim.result import CHANNELS, SimResult
 from railpilot.units import kmh_to_mps
+
+CONTROLLER_CLASSES: dict[str, type[Controller]] = {
+    "pid": TrackingPID,
+    "smarc": SMARC,
+    "qsmc": QSMC,
+}
+KINDS = {"pid": engine.KIND_PID, "smarc": engine.KIND_SMARC, "qsmc": engine.KIND_QSMC}
 
 
 def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     """Controller parameters by the documented tuning rule for this scenario's brake.
 
     The ATO's model of the brake (``ato.lead_s`` split as in the plant, else the
-    true delay and air lag) goes into SIMC (control/tuning.py); both controllers
-    get the same loop bandwidth.
+    true delay and lag) goes into the tuning rules of control/tuning.py.
     """
-    delay, lag = _ato_brake_model(scenario)
-    # tau_c and the remaining free parameters come from the grid search that
-    # docs/paper-000-smarc-ep.md describes (same grid effort for both controllers)
+    delay, lag = ato_brake_model(scenario)
+    # tau_c and the remaining free parameters: the winners of the grid search in
+    # railpilot/reproduce/tune_smarc_ep.py (same method and objective for both)
     if name == "pid":
+        tau_c = 1.0 * delay
         return dict(
-            simc_pid_integrating(1.0, delay, lag, tau_c_s=0.75 * delay),
+            simc_pid_integrating(1.0, delay, lag, tau_c_s=tau_c),
             anti_windup="backcalc",
-            position_gain=0.8,
+            position_gain=tracking_position_gain(delay, lag, tau_c, factor=0.75),
         )
     if name == "smarc":
         return dict(
-            smarc_from_simc(1.0, delay, lag, tau_c_s=0.25 * (delay + lag)),
+            smarc_from_simc(1.0, delay, lag, tau_c_s=0.5 * (delay + lag)),
             alpha=1.0,
             eta=0.1,
             phi=0.05,
-            gamma=(0.05, 0.2),
+            gamma=(0.05, 0.05),
             theta_bounds=((0.7, 1.5), (-0.3, 0.3)),
         )
-    raise ConfigError("controller.name", name, "one of pid, smarc")
+    if name == "qsmc":
+        return qsmc_defaults(delay, lag, scenario.sim.control_period_s)
+    raise ConfigError("controller.name", name, f"one of {', '.join(CONTROLLERS)}")
 
 
-def _ato_brake_model(scenario: Scenario) -> tuple[float, float]:
-    brake = scenario.brake
+def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
+    """The ATO's model of the brake's ``(delay, lag)`` [s].
+
+    Without ``ato.lead_s`` the true values; with it, the lead split in the plant's
+    proportion (the ATO knows only the total).
+    """
+    delay, lag = scenario.brake_lead_s
     if scenario.ato.lead_s is None:
-        return brake.delay_s, brake.air_lag_s
-    # the ATO knows only the total lead; split it in the plant's proportion
-    total = brake.delay_s + brake.air_lag_s
-    share = brake.delay_s / total if total > 0 else 0.5
+        return delay, lag
+    total = delay + lag
+    share = delay / total if total > 0 else 0.5
     return scenario.ato.lead_s * share, scenario.ato.lead_s * (1 - share)
-
-
-def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
-    """Build the scenario's controller (or ``name``) with tuned defaults + overrides."""
-    name = name or scenario.controller.name
-    params = default_controller_params(scenario, name)
-    overrides = scenario.controller.params.get(name, {})
-    cls = TrackingPID if name == "pid" else SMARC
-    allowed = _parameter_names(cls)
-    for key, value in overrides.items():
-        if key not in allowed:
-            raise ConfigError(
-                f"controller.{name}.{key}",
-                value,
-                f"a parameter of {cls.__name__}: {', '.join(allowed)}",
-            )
-    params.update(overrides)
-    a_max = scenario.train.max_service_decel_mps2
-    try:
-        if name == "pid":
-            params.setdefault("output_limits", (-a_max, a_max))
-            return TrackingPID(**params)
-        params.setdefault("output_limits", (-a_max, a_max))
-        return SMARC(**params)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({exc})") from exc
 
 
 def _parameter_names(cls: type) -> list[str]:
@@ -104,14 +103,40 @@ def _parameter_names(cls: type) -> list[str]:
     return names
 
 
+def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
+    """Build the scenario's controller (or ``name``) with tuned defaults + overrides."""
+    name = name or scenario.controller.name
+    if name not in CONTROLLER_CLASSES:
+        raise ConfigError("controller.name", name, f"one of {', '.join(CONTROLLERS)}")
+    params = default_controller_params(scenario, name)
+    overrides = scenario.controller.params.get(name, {})
+    cls = CONTROLLER_CLASSES[name]
+    allowed = _parameter_names(cls)
+    for key, value in overrides.items():
+        if key not in allowed:
+            raise ConfigError(
+                f"controller.{name}.{key}",
+                value,
+                f"a parameter of {cls.__name__}: {', '.join(allowed)}",
+            )
+    params.update(overrides)
+    a_max = scenario.train.max_service_decel_mps2
+    params.setdefault("output_limits", (-a_max, a_max))
+    try:
+        return cls(**params)
+    except (TypeError, ValueError) as exc:
+        raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({exc})") from exc
+
+
 @dataclass
 class KernelInputs:
-    """Everything :func:`engine.run_ep_kernel` takes except the per-run state."""
+    """Everything :func:`engine.run_kernel` takes (see its docstring)."""
 
     n_steps: int
     dt: float
     control_every: int
     train: np.ndarray
+    act_kind: int
     brake_p: np.ndarray
     line_edges: np.ndarray
     line_values: np.ndarray
@@ -128,19 +153,66 @@ class KernelInputs:
     kind: int
     ctrl_p: np.ndarray
     ctrl_s0: np.ndarray
+    real: np.ndarray
+    speed_noise: np.ndarray
+    balises: np.ndarray
 
 
-def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
-    """Pack a scenario and a controller into the kernel's flat arrays."""
+def feed_forward_acceleration(ref: BrakingCurve, t: np.ndarray, lead_s: float) -> np.ndarray:
+    """Reference acceleration [m/s^2] to command at ``t`` for a brake ``lead_s`` slow.
+
+    ``a_ref(t + lead)``, except over the last ``lead`` before the stop: there the
+    reference is at rest at ``t + lead`` only because the train will have stopped, not
+    because the brake is to be released, so the deceleration the curve stops with is
+    held (a train stops on its brakes).
+    """
+    _, _, a_ahead = ref.sample(t + lead_s)
+    end = ref.duration_s
+    _, _, (a_final,) = ref.sample(np.array([end - 1e-9]))
+    holding = (t < end) & (t + lead_s >= end)
+    return np.where(holding, np.minimum(a_ahead, a_final), a_ahead)
+
+
+def pack_brake(scenario: Scenario, load_weighed_eff_mass_kg: float) -> tuple[int, np.ndarray]:
+    """``(actuator kind, params)`` of the scenario's brake for step ``sim.dt_s``."""
+    brake = scenario.brake
+    if isinstance(brake, EPBrake):
+        eb = scenario.train.electric_brake
+        return engine.ACT_EP, brake.pack(
+            scenario.sim.dt_s,
+            load_weighed_eff_mass_kg,
+            eb.max_force_n,
+            eb.max_power_w,
+            scenario.train.motor_cars,
+        )
+    return engine.ACT_LAG_DELAY, brake.pack(scenario.sim.dt_s)
+
+
+def prepare(
+    scenario: Scenario, controller: Controller, reference: KernelInputs | None = None
+) -> KernelInputs:
+    """Pack a scenario and a controller into the kernel's flat arrays.
+
+    ``reference``: inputs of a scenario with the same reference, sim settings and ATO
+    model, whose sampled reference arrays are reused (a Monte Carlo's runs).
+    """
     sim = scenario.sim
     train = scenario.train
     dt = sim.dt_s
     n = sim.n_steps
     ref = scenario.reference
-    t = np.arange(n + 1) * dt
-    ref_x, ref_v, ref_a = ref.sample(t)
-    delay, lag = _ato_brake_model(scenario)
-    _, _, ref_a_ff = ref.sample(t + delay + lag)
+    if reference is not None:
+        ref_x, ref_v, ref_a, ref_a_ff = (
+            reference.ref_x,
+            reference.ref_v,
+            reference.ref_a,
+            reference.ref_a_ff,
+        )
+    else:
+        t = np.arange(n + 1) * dt
+        ref_x, ref_v, ref_a = ref.sample(t)
+        delay, lag = ato_brake_model(scenario)
+        ref_a_ff = feed_forward_acceleration(ref, t, delay + lag)
     ato = scenario.ato
     mass_lw = ato.mass_kg if ato.mass_kg is not None else train.mass_kg
     davis = ato.davis if ato.davis is not None else (train.davis_a0, train.davis_a1, train.davis_a2)
@@ -151,7 +223,7 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
     ato_arr[engine.A_UMIN] = -train.max_service_decel_mps2
     ato_arr[engine.A_UMAX] = 0.0
     ato_arr[engine.A_STOP_M] = ref.stop_m
-    ato_arr[engine.A_V_CO] = kmh_to_mps(scenario.brake.changeover_kmh)
+    ato_arr[engine.A_V_CO] = kmh_to_mps(scenario.changeover_kmh)
     train_arr = np.array(
         [
             train.effective_mass_kg,
@@ -160,32 +232,27 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
             train.davis_a1,
             train.davis_a2,
             ref.start_m,
-            ref.v0_mps,
+            ref.v0_mps if scenario.initial_speed_mps is None else scenario.initial_speed_mps,
+            scenario.brake_gain,
         ]
     )
-    brake_p = scenario.brake.pack(
-        dt,
-        ato_arr[engine.A_MEFF_LW],
-        train.electric_brake.max_force_n,
-        train.electric_brake.max_power_w,
-        train.motor_cars,
-    )
+    act_kind, brake_p = pack_brake(scenario, ato_arr[engine.A_MEFF_LW])
     edges, values = scenario.line.resistance_profile()
     reg_start, reg_end, reg_force = scenario.disturbance.region_arrays()
-    if isinstance(controller, TrackingPID):
-        kind = engine.KIND_PID
-    elif isinstance(controller, SMARC):
-        kind = engine.KIND_SMARC
-    else:
+    kind = KINDS.get(getattr(controller, "name", ""), -1)
+    if kind < 0 or not isinstance(controller, tuple(CONTROLLER_CLASSES.values())):
         raise ConfigError(
-            "controller", type(controller).__name__, "a TrackingPID or SMARC controller"
+            "controller", type(controller).__name__, "a TrackingPID, SMARC or QSMC controller"
         )
     controller.reset()
+    realism = scenario.realism
+    n_updates = (n + sim.control_every - 1) // sim.control_every
     return KernelInputs(
         n_steps=n,
         dt=dt,
         control_every=sim.control_every,
         train=train_arr,
+        act_kind=act_kind,
         brake_p=brake_p,
         line_edges=edges,
         line_values=values,
@@ -193,7 +260,7 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
         reg_start=reg_start,
         reg_end=reg_end,
         reg_force=reg_force,
-        random_n=scenario.disturbance.random_series(n, dt),
+        random_n=scenario.disturbance.random_series(n, dt, ref_a, train.effective_mass_kg),
         ref_x=ref_x,
         ref_v=ref_v,
         ref_a=ref_a,
@@ -202,24 +269,24 @@ def prepare(scenario: Scenario, controller: Controller) -> KernelInputs:
         kind=kind,
         ctrl_p=controller.params.copy(),
         ctrl_s0=controller.state.copy(),
+        real=realism.pack(),
+        speed_noise=realism.speed_noise(n_updates),  # seeded by realism
+        balises=realism.balises(),
     )
 
 
 def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Run packed inputs once; return ``(metrics, record)`` (record empty if 0)."""
-    brake_s = np.zeros(N_BRAKE_STATE)
-    brake_buf = np.zeros(int(inp.brake_p[-1]))
     n_rec = (inp.n_steps + record_every - 1) // record_every if record_every > 0 else 0
     record = np.zeros((n_rec, engine.N_CHANNELS))
     metrics = np.zeros(engine.N_METRICS)
-    engine.run_ep_kernel(
+    engine.run_kernel(
         inp.n_steps,
         inp.dt,
         inp.control_every,
         inp.train,
+        inp.act_kind,
         inp.brake_p,
-        brake_s,
-        brake_buf,
         inp.line_edges,
         inp.line_values,
         inp.dist_const,
@@ -234,8 +301,10 @@ def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np
         inp.ato,
         inp.kind,
         inp.ctrl_p,
-        inp.ctrl_s0.copy(),
-        np.zeros(0),
+        inp.ctrl_s0,
+        inp.real,
+        inp.speed_noise,
+        inp.balises,
         record,
         max(record_every, 1),
         metrics,
@@ -243,20 +312,26 @@ def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np
     return metrics, record
 
 
+#: kernel metric index -> public name (railpilot.sim.result.METRICS defines them)
+METRIC_INDEX: dict[str, int] = {
+    "stop_error_m": engine.M_STOP_ERR,
+    "stop_time_s": engine.M_STOP_T,
+    "max_speed_error_mps": engine.M_MAX_VERR,
+    "rms_speed_error_mps": engine.M_RMS_VERR,
+    "speed_error_at_changeover_mps": engine.M_VERR_CO,
+    "max_decel_mps2": engine.M_MAX_DECEL,
+    "max_jerk_mps3": engine.M_MAX_JERK,
+    "max_position_error_m": engine.M_MAX_XERR,
+    "energy_electric_j": engine.M_E_ELEC,
+    "energy_friction_j": engine.M_E_FRIC,
+    "odometry_error_at_stop_m": engine.M_ODO_ERR,
+    "slide_time_s": engine.M_SLIDE_T,
+}
+
+
 def metrics_dict(metrics: np.ndarray) -> dict[str, float]:
-    """Name the kernel's metrics array (see railpilot.sim.result.METRICS)."""
-    return {
-        "stop_error_m": float(metrics[engine.M_STOP_ERR]),
-        "stop_time_s": float(metrics[engine.M_STOP_T]),
-        "max_speed_error_mps": float(metrics[engine.M_MAX_VERR]),
-        "rms_speed_error_mps": float(metrics[engine.M_RMS_VERR]),
-        "speed_error_at_changeover_mps": float(metrics[engine.M_VERR_CO]),
-        "max_decel_mps2": float(metrics[engine.M_MAX_DECEL]),
-        "max_jerk_mps3": float(metrics[engine.M_MAX_JERK]),
-        "max_position_error_m": float(metrics[engine.M_MAX_XERR]),
-        "energy_electric_j": float(metrics[engine.M_E_ELEC]),
-        "energy_friction_j": float(metrics[engine.M_E_FRIC]),
-    }
+    """Name the kernel's metrics array."""
+    return {name: float(metrics[i]) for name, i in METRIC_INDEX.items()}
 
 
 def simulate(scenario: Scenario, controller: Controller | str | None = None) -> SimResult:

@@ -1,0 +1,52 @@
+"""Paper 002's brake: static map ``F``, first-order lag ``tau``, transport delay ``sigma``.
+
+``ac(s) / at(s) = exp(-sigma s) / (tau s + 1)``, ``at = F(uc)`` (paper 002 eq. 1, 5).
+The map is linear, ``F(uc) = -a_max uc`` for a command ``uc`` in ``[0, 1]``; a notched
+(stepped) map is the same line sampled at ``notches`` steps, which the ATO's command
+quantisation (railpilot.sim.realism) provides for every brake model.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from railpilot.brakes.lag_delay import LagDelay
+from railpilot.errors import ConfigError
+
+
+@dataclass(frozen=True)
+class LagDelayBrake:
+    """Parameters of paper 002's brake model.
+
+    Attributes
+    ----------
+    lag_s
+        Response time constant ``tau`` [s].
+    delay_s
+        Transmission delay ``sigma`` [s] (paper: 1.05 to 1.35 s).
+    max_decel_mps2
+        ``a_max`` [m/s^2]: ``F(1) = -a_max`` (paper: 1.0).
+    """
+
+    lag_s: float = 0.5
+    delay_s: float = 1.2
+    max_decel_mps2: float = 1.0
+
+    def __post_init__(self) -> None:
+        for name in ("lag_s", "delay_s"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value >= 0):
+                raise ConfigError(f"brake.{name}", value, "a finite number >= 0 [s]")
+        if not (np.isfinite(self.max_decel_mps2) and self.max_decel_mps2 > 0):
+            raise ConfigError("brake.max_decel_mps2", self.max_decel_mps2, "a number > 0")
+
+    def pack(self, dt: float) -> np.ndarray:
+        """The kernel's params: LagDelay's exact-method params, then ``a_max``."""
+        if self.delay_s > 0 and self.delay_s < dt:
+            raise ConfigError(
+                "brake.delay_s", self.delay_s, f"0 or at least one simulation step (dt = {dt} s)"
+            )
+        params = LagDelay(self.lag_s, self.delay_s, dt).params
+        return np.append(params, self.max_decel_mps2)

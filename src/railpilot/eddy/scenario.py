@@ -1,0 +1,331 @@
+"""Eddy-brake scenario: a typed, validated configuration built from a plain mapping.
+
+``railpilot simulate file.toml`` routes files with ``kind = "eddy-brake"`` here:
+``EddyScenario.from_mapping(tomllib.load(f))``. Layout (every section and key optional
+except ``torque_demand_nm`` and ``initial_speed_kmh``; defaults = the documented set)::
+
+    kind = "eddy-brake"
+    name = "case 1"
+    torque_demand_nm = 3500
+    initial_speed_kmh = 160
+    duration_s = 100
+    dt_s = 1e-4
+    record_every = 10
+    controller = "fuzzy_pi"        # open_loop | pid | fuzzy | fuzzy_pi
+
+    [pid]       kp, ki, kd, derivative_filter_s
+    [fuzzy]     e_scale, ce_scale, u_scale, ce_filter_s, n_grid
+    [fuzzy_pi]  kp1, ki1, kp_span, ki_span, e_scale, ce_scale, ce_filter_s, n_grid
+    [brake]     fields of EddyBrakeParams (geometry and materials)
+    [coil]      fields of CoilParams
+    [train]     fields of TrainParams
+    [table]     csv = "path.csv" (relative to the scenario file) or max_current_a,
+                current_step_a, max_speed_kmh, speed_step_kmh (grid of the analytic model)
+    [metrics]   settling_band, hold_band, steady_start_s, steady_end_speed_kmh
+
+Unknown keys are rejected with a :class:`~railpilot.errors.ScenarioError` naming the key.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from railpilot.control.base import Controller
+from railpilot.control.fuzzy import FuzzyController, FuzzyPI
+from railpilot.control.open_loop import OpenLoop
+from railpilot.control.pid import PID
+from railpilot.eddy.coil import CoilParams
+from railpilot.eddy.metrics import StepMetrics, step_metrics
+from railpilot.eddy.simulate import EddyResult, simulate_eddy
+from railpilot.eddy.table import TorqueTable, load_torque_table_csv
+from railpilot.eddy.torque_model import EddyBrakeParams
+from railpilot.eddy.train import TrainParams
+from railpilot.errors import ConfigError, ScenarioError
+from railpilot.units import kmh_to_mps
+
+KIND = "eddy-brake"
+CONTROLLERS: tuple[str, ...] = ("open_loop", "pid", "fuzzy", "fuzzy_pi")
+
+#: Paper 003 section 3.1 gains; the derivative filter is Simulink's default N = 100.
+PID_DEFAULTS: dict[str, float] = {"kp": 1.5, "ki": 0.00125, "kd": 0.25, "derivative_filter_s": 0.01}
+#: Our tuning (grid search, docs/paper-003-eddy-brake.md).
+FUZZY_DEFAULTS: dict[str, float] = {
+    "e_scale": 2000.0,
+    "ce_scale": 100_000.0,
+    "u_scale": 10_000.0,
+    "ce_filter_s": 0.01,
+    "n_grid": 51,
+}
+FUZZY_PI_DEFAULTS: dict[str, float] = {
+    "kp1": 5.0,
+    "ki1": 0.0,
+    "kp_span": 1.0,
+    "ki_span": 0.0,
+    "e_scale": 3500.0,
+    "ce_scale": 30_000.0,
+    "ce_filter_s": 0.01,
+    "n_grid": 51,
+}
+TABLE_GRID_DEFAULTS: dict[str, float] = {
+    "max_current_a": 500.0,
+    "current_step_a": 2.0,
+    "max_speed_kmh": 300.0,
+    "speed_step_kmh": 0.5,
+}
+METRICS_DEFAULTS: dict[str, float] = {
+    "settling_band": 0.02,
+    "hold_band": 0.01,
+    "steady_start_s": 5.0,
+    "steady_end_speed_kmh": 30.0,
+}
+TOP_KEYS = {
+    "kind": str,
+    "name": str,
+    "torque_demand_nm": float,
+    "initial_speed_kmh": float,
+    "duration_s": float,
+    "dt_s": float,
+    "record_every": int,
+    "controller": str,
+}
+SECTIONS = ("pid", "fuzzy", "fuzzy_pi", "brake", "coil", "train", "table", "metrics")
+
+
+def _number(key: str, value: Any, *, integer: bool = False) -> float:
+    if isinstance(value, bool) or not isinstance(value, int | float):
+        raise ScenarioError(key, value, "an integer" if integer else "a number")
+    if integer and not float(value).is_integer():
+        raise ScenarioError(key, value, "an integer")
+    if not math.isfinite(float(value)):
+        raise ScenarioError(key, value, "a finite number")
+    return float(value)
+
+
+def _section(data: Mapping[str, Any], name: str, defaults: Mapping[str, float]) -> dict[str, float]:
+    raw = data.get(name, {})
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(name, raw, "a table of keys")
+    out = dict(defaults)
+    for key, value in raw.items():
+        if key not in defaults:
+            raise ScenarioError(f"{name}.{key}", value, "one of " + ", ".join(sorted(defaults)))
+        out[key] = _number(f"{name}.{key}", value, integer=key == "n_grid")
+    return out
+
+
+def _dataclass_section(data: Mapping[str, Any], name: str, cls: type) -> Any:
+    raw = data.get(name, {})
+    if not isinstance(raw, Mapping):
+        raise ScenarioError(name, raw, "a table of keys")
+    names = [f.name for f in fields(cls)]
+    kwargs = {}
+    for key, value in raw.items():
+        if key not in names:
+            raise ScenarioError(f"{name}.{key}", value, "one of " + ", ".join(names))
+        kwargs[key] = _number(f"{name}.{key}", value)
+    try:
+        return cls(**kwargs)
+    except ConfigError as exc:
+        raise ScenarioError(exc.field, exc.value, exc.allowed) from None
+
+
+@dataclass(frozen=True)
+class EddyScenario:
+    """A validated eddy-brake scenario (see the module docstring for the file layout)."""
+
+    torque_demand_nm: float
+    initial_speed_kmh: float
+    name: str = "eddy-brake"
+    duration_s: float = 100.0
+    dt_s: float = 1e-4
+    record_every: int = 10
+    controller: str = "fuzzy_pi"
+    pid: dict[str, float] = field(default_factory=lambda: dict(PID_DEFAULTS))
+    fuzzy: dict[str, float] = field(default_factory=lambda: dict(FUZZY_DEFAULTS))
+    fuzzy_pi: dict[str, float] = field(default_factory=lambda: dict(FUZZY_PI_DEFAULTS))
+    brake: EddyBrakeParams = field(default_factory=EddyBrakeParams)
+    coil: CoilParams = field(default_factory=CoilParams)
+    train: TrainParams = field(default_factory=TrainParams)
+    table_csv: Path | None = None
+    table_grid: dict[str, float] = field(default_factory=lambda: dict(TABLE_GRID_DEFAULTS))
+    metrics: dict[str, float] = field(default_factory=lambda: dict(METRICS_DEFAULTS))
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], base_dir: Path | None = None) -> EddyScenario:
+        """Validate a mapping as parsed from TOML; ``base_dir`` resolves ``table.csv``."""
+        if not isinstance(data, Mapping):
+            raise ScenarioError("scenario", data, "a table of keys")
+        for key, value in data.items():
+            if key not in TOP_KEYS and key not in SECTIONS:
+                allowed = ", ".join(sorted([*TOP_KEYS, *SECTIONS]))
+                raise ScenarioError(key, value, f"one of {allowed}")
+        kind = data.get("kind", KIND)
+        if kind != KIND:
+            raise ScenarioError("kind", kind, f"'{KIND}'")
+        for required in ("torque_demand_nm", "initial_speed_kmh"):
+            if required not in data:
+                raise ScenarioError(required, None, "a number (this key is required)")
+        name = data.get("name", "eddy-brake")
+        if not isinstance(name, str):
+            raise ScenarioError("name", name, "a string")
+        controller = data.get("controller", "fuzzy_pi")
+        if controller not in CONTROLLERS:
+            raise ScenarioError("controller", controller, "one of " + ", ".join(CONTROLLERS))
+        demand = _number("torque_demand_nm", data["torque_demand_nm"])
+        if not demand > 0:
+            raise ScenarioError("torque_demand_nm", demand, "a torque > 0 [N m]")
+        speed = _number("initial_speed_kmh", data["initial_speed_kmh"])
+        if not 0 < speed <= 400:
+            raise ScenarioError("initial_speed_kmh", speed, "a speed in (0, 400] km/h")
+        duration = _number("duration_s", data.get("duration_s", 100.0))
+        if not duration > 0:
+            raise ScenarioError("duration_s", duration, "a time > 0 [s]")
+        dt = _number("dt_s", data.get("dt_s", 1e-4))
+        if not 0 < dt <= min(duration, 1e-2):
+            raise ScenarioError("dt_s", dt, f"a step in (0, {min(duration, 1e-2)}] s")
+        record_every = int(_number("record_every", data.get("record_every", 10), integer=True))
+        if record_every < 1:
+            raise ScenarioError("record_every", record_every, "an integer >= 1")
+
+        table_raw = data.get("table", {})
+        if not isinstance(table_raw, Mapping):
+            raise ScenarioError("table", table_raw, "a table of keys")
+        table_csv = None
+        grid_raw = dict(table_raw)
+        if "csv" in grid_raw:
+            csv = grid_raw.pop("csv")
+            if not isinstance(csv, str) or not csv:
+                raise ScenarioError("table.csv", csv, "a path string")
+            table_csv = (base_dir / csv) if base_dir is not None else Path(csv)
+            if grid_raw:
+                raise ScenarioError(
+                    "table", sorted(grid_raw), "either csv or the model grid keys, not both"
+                )
+        table_grid = _section({"table": grid_raw}, "table", TABLE_GRID_DEFAULTS)
+
+        scenario = cls(
+            torque_demand_nm=demand,
+            initial_speed_kmh=speed,
+            name=name,
+            duration_s=duration,
+            dt_s=dt,
+            record_every=record_every,
+            controller=controller,
+            pid=_section(data, "pid", PID_DEFAULTS),
+            fuzzy=_section(data, "fuzzy", FUZZY_DEFAULTS),
+            fuzzy_pi=_section(data, "fuzzy_pi", FUZZY_PI_DEFAULTS),
+            brake=_dataclass_section(data, "brake", EddyBrakeParams),
+            coil=_dataclass_section(data, "coil", CoilParams),
+            train=_dataclass_section(data, "train", TrainParams),
+            table_csv=table_csv,
+            table_grid=table_grid,
+            metrics=_section(data, "metrics", METRICS_DEFAULTS),
+        )
+        table = scenario.build_table()
+        for name in CONTROLLERS:  # every section is checked, not only the selected one
+            try:
+                scenario.make_controller(name, table)
+            except ConfigError as exc:
+                raise ScenarioError(exc.field, exc.value, exc.allowed) from None
+            except ValueError as exc:
+                raise ScenarioError(name, dict(getattr(scenario, name, {})), str(exc)) from None
+        return scenario
+
+    @property
+    def initial_speed_mps(self) -> float:
+        return float(kmh_to_mps(self.initial_speed_kmh))
+
+    def build_table(self) -> TorqueTable:
+        """The brake body: the user's CSV if given, else the analytic model's grid."""
+        if self.table_csv is not None:
+            return load_torque_table_csv(self.table_csv)
+        return TorqueTable.from_model(self.brake, **self.table_grid)
+
+    def make_controller(self, name: str, table: TorqueTable) -> Controller:
+        """Build controller ``name`` with this scenario's settings."""
+        if name == "open_loop":
+            # the coil current that gives the demand at the initial speed
+            return OpenLoop(
+                min(
+                    table.current_for_torque_a(self.torque_demand_nm, self.initial_speed_mps),
+                    self.coil.current_limit_a,
+                )
+            )
+        if name == "pid":
+            p = self.pid
+            return PID(p["kp"], p["ki"], p["kd"], derivative_filter_s=p["derivative_filter_s"])
+        if name == "fuzzy":
+            f = self.fuzzy
+            return FuzzyController(
+                f["e_scale"],
+                f["ce_scale"],
+                f["u_scale"],
+                ce_filter_s=f["ce_filter_s"],
+                n_grid=int(f["n_grid"]),
+            )
+        if name == "fuzzy_pi":
+            q = self.fuzzy_pi
+            return FuzzyPI(
+                q["kp1"],
+                q["ki1"],
+                q["kp_span"],
+                q["ki_span"],
+                q["e_scale"],
+                q["ce_scale"],
+                ce_filter_s=q["ce_filter_s"],
+                n_grid=int(q["n_grid"]),
+            )
+        raise ScenarioError("controller", name, "one of " + ", ".join(CONTROLLERS))
+
+    def holdable_down_to_kmh(self, table: TorqueTable) -> float:
+        """Lowest speed [km/h] at which the current limit still gives the demand."""
+        speeds = np.linspace(0.0, self.initial_speed_mps, 2001)
+        ok = np.array(
+            [table.torque(self.coil.current_limit_a, s) >= self.torque_demand_nm for s in speeds]
+        )
+        return float(speeds[np.argmax(ok)] * 3.6) if ok.any() else math.nan
+
+    def run(
+        self, controller: str | None = None, *, record_every: int | None = None
+    ) -> tuple[EddyResult, StepMetrics]:
+        """Simulate with ``controller`` (default: the scenario's) and compute the metrics.
+
+        The steady window ends at ``metrics.steady_end_speed_kmh`` or 10 km/h above the
+        speed where the current limit makes the demand unreachable, whichever is higher.
+        """
+        table = self.build_table()
+        ctrl = self.make_controller(controller or self.controller, table)
+        result = simulate_eddy(
+            ctrl,
+            table=table,
+            torque_demand_nm=self.torque_demand_nm,
+            initial_speed_mps=self.initial_speed_mps,
+            coil=self.coil,
+            train=self.train,
+            duration_s=self.duration_s,
+            dt_s=self.dt_s,
+            record_every=self.record_every if record_every is None else record_every,
+        )
+        limit_kmh = self.holdable_down_to_kmh(table)
+        end_kmh = self.metrics["steady_end_speed_kmh"]
+        if math.isfinite(limit_kmh):
+            end_kmh = max(end_kmh, limit_kmh + 10.0)
+        metrics = step_metrics(
+            result.time_s,
+            result.torque_nm,
+            result.speed_kmh,
+            self.torque_demand_nm,
+            settling_band=self.metrics["settling_band"],
+            hold_band=self.metrics["hold_band"],
+            steady_start_s=self.metrics["steady_start_s"],
+            steady_end_speed_kmh=end_kmh,
+        )
+        result.metadata["scenario"] = self.name
+        result.metadata["holdable_down_to_kmh"] = limit_kmh
+        return result, metrics

@@ -1,0 +1,544 @@
+"""The ground endpoint (TCP server side): one per accepted connection.
+
+Three state machines, each with ONE transition table in this file:
+
+* :data:`TRANSITIONS` - the connection/registration state of the train on this
+  connection;
+* :data:`TSR_TRANSITIONS` - delivery of one TSR session (set, acknowledge, cancel);
+* :data:`DELIVERY_TRANSITIONS` - delivery of one dispatch command or target point.
+
+What must survive reconnects (pending deliveries, replay-protection timestamps, the last
+running info) lives in a :class:`TrainRecord` per train, in a mapping the server owns and
+passes to every endpoint. A TSR issued while the train is offline waits there.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping, MutableMapping
+from dataclasses import dataclass, field
+from enum import Enum
+
+from .config import GroundConfig
+from .endpoint import Endpoint, transition
+from .errors import LocalProtocolError, StateError
+from .events import (
+    DispatchAcknowledged,
+    TargetPointAcknowledged,
+    TrainDeregistered,
+    TrainRegistered,
+    TsrAcknowledged,
+    TsrCancelAcknowledged,
+    TsrRefusedByTrain,
+)
+from .frame import Frame
+from .keys import KeyStore
+from .messages import (
+    DeregisterRequest,
+    DeregisterResponse,
+    DispatchAck,
+    DispatchCommand,
+    Heartbeat,
+    LinkDirection,
+    Message,
+    MessageType,
+    PlannedCurve,
+    RegisterRequest,
+    RegisterResponse,
+    RegisterResult,
+    RunningInfo,
+    RunningTimes,
+    StationStops,
+    TargetPoint,
+    TargetPointAck,
+    TimeCheck,
+    TimeOffsetReport,
+    TsrCancel,
+    TsrCancelAck,
+    TsrSet,
+    TsrSetAck,
+    TsrSetResult,
+)
+from .safety import HeldValue, PeerHistory, PeriodicSupervisor, SecureChannel
+
+# --- connection / registration ---------------------------------------------------------------
+
+
+class GroundState(Enum):
+    AWAITING_REGISTRATION = "awaiting registration"  # connected, train not (yet) managed
+    REGISTERED = "registered"  # managed: running info accepted, deliveries sent
+    DEREGISTERED = "deregistered"  # train said goodbye; may register again
+    FAILED = "failed"  # a periodic message timed out; waiting for the adapter to close
+    CLOSED = "closed"  # connection gone; the endpoint is finished
+
+
+class GroundInput(Enum):
+    LINK_TIMEOUT = "link timeout"  # tick()
+    CONNECTION_LOST = "connection lost"  # adapter
+    SEND = "send"  # application sends an unacknowledged message
+    RECV_REGISTER_ACCEPTED = "register (accepted)"
+    RECV_REGISTER_REFUSED = "register (refused)"
+    RECV_DEREGISTER = "deregister"
+    RECV_DATA = "data"  # running info, planned curve, offset report, acknowledgements
+    RECV_HEARTBEAT = "heartbeat"
+
+
+_G = GroundState
+_GI = GroundInput
+_LIVE = (_G.AWAITING_REGISTRATION, _G.REGISTERED, _G.DEREGISTERED)
+
+#: The ground connection state machine: (state, input) -> next state.
+TRANSITIONS: Mapping[tuple[GroundState, GroundInput], GroundState] = {
+    (_G.AWAITING_REGISTRATION, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,
+    (_G.AWAITING_REGISTRATION, _GI.RECV_REGISTER_REFUSED): _G.AWAITING_REGISTRATION,
+    (_G.AWAITING_REGISTRATION, _GI.RECV_DEREGISTER): _G.DEREGISTERED,  # confirm anyway
+    (_G.REGISTERED, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,  # our response was lost
+    (_G.REGISTERED, _GI.RECV_DEREGISTER): _G.DEREGISTERED,
+    (_G.REGISTERED, _GI.RECV_DATA): _G.REGISTERED,
+    (_G.REGISTERED, _GI.SEND): _G.REGISTERED,
+    (_G.DEREGISTERED, _GI.RECV_DEREGISTER): _G.DEREGISTERED,  # our confirmation was lost
+    (_G.DEREGISTERED, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,
+    (_G.DEREGISTERED, _GI.RECV_REGISTER_REFUSED): _G.DEREGISTERED,
+    **{(s, _GI.RECV_HEARTBEAT): s for s in _LIVE},
+    **{(s, _GI.LINK_TIMEOUT): _G.FAILED for s in _LIVE},
+    **{(s, _GI.CONNECTION_LOST): _G.CLOSED for s in (*_LIVE, _G.FAILED)},
+}
+
+
+# --- TSR delivery ----------------------------------------------------------------------------
+
+
+class TsrState(Enum):
+    PENDING_SET = "pending set"  # TsrSet resent every resend interval until acknowledged
+    ACTIVE = "active"  # train confirmed it applied the TSR
+    RECONFIRMING = "reconfirming"  # train re-registered: TsrSet resent until confirmed again
+    PENDING_CANCEL = "pending cancel"  # TsrCancel resent until acknowledged
+    CANCELLED = "cancelled"
+    REFUSED = "refused"  # the train found it implausible or expired
+    EXPIRED = "expired"  # validity ended on the ground clock; nothing more is sent
+
+
+class TsrInput(Enum):
+    ACK_APPLIED = "set ack (applied)"
+    ACK_REFUSED = "set ack (refused)"
+    CANCEL_REQUESTED = "cancel requested"  # application
+    CANCEL_ACK = "cancel ack"
+    REREGISTERED = "train registered again"
+    VALIDITY_ENDED = "validity ended"
+
+
+_T = TsrState
+_TI = TsrInput
+_TSR_FINAL = (_T.CANCELLED, _T.REFUSED, _T.EXPIRED)
+
+#: TSR session delivery: (state, input) -> next state.
+TSR_TRANSITIONS: Mapping[tuple[TsrState, TsrInput], TsrState] = {
+    (_T.PENDING_SET, _TI.ACK_APPLIED): _T.ACTIVE,
+    (_T.PENDING_SET, _TI.ACK_REFUSED): _T.REFUSED,
+    (_T.PENDING_SET, _TI.CANCEL_REQUESTED): _T.PENDING_CANCEL,
+    (_T.PENDING_SET, _TI.REREGISTERED): _T.PENDING_SET,
+    (_T.PENDING_SET, _TI.VALIDITY_ENDED): _T.EXPIRED,
+    (_T.ACTIVE, _TI.ACK_APPLIED): _T.ACTIVE,  # duplicate acknowledgement
+    # A late answer to a resend that reached the train after the TSR expired there; the
+    # train confirmed it earlier and would have re-registered had it lost it.
+    (_T.ACTIVE, _TI.ACK_REFUSED): _T.ACTIVE,
+    (_T.ACTIVE, _TI.CANCEL_REQUESTED): _T.PENDING_CANCEL,
+    (_T.ACTIVE, _TI.REREGISTERED): _T.RECONFIRMING,  # the train may have restarted
+    (_T.ACTIVE, _TI.VALIDITY_ENDED): _T.EXPIRED,
+    (_T.RECONFIRMING, _TI.ACK_APPLIED): _T.ACTIVE,
+    (_T.RECONFIRMING, _TI.ACK_REFUSED): _T.REFUSED,
+    (_T.RECONFIRMING, _TI.CANCEL_REQUESTED): _T.PENDING_CANCEL,
+    (_T.RECONFIRMING, _TI.REREGISTERED): _T.RECONFIRMING,
+    (_T.RECONFIRMING, _TI.VALIDITY_ENDED): _T.EXPIRED,
+    (_T.PENDING_CANCEL, _TI.CANCEL_ACK): _T.CANCELLED,
+    (_T.PENDING_CANCEL, _TI.ACK_APPLIED): _T.PENDING_CANCEL,  # late set ack
+    (_T.PENDING_CANCEL, _TI.ACK_REFUSED): _T.PENDING_CANCEL,
+    (_T.PENDING_CANCEL, _TI.REREGISTERED): _T.PENDING_CANCEL,
+    (_T.PENDING_CANCEL, _TI.VALIDITY_ENDED): _T.PENDING_CANCEL,  # a cancel is harmless
+    # Late duplicates after the end are tolerated, nothing else is.
+    **{(s, i): s for s in _TSR_FINAL for i in (_TI.ACK_APPLIED, _TI.ACK_REFUSED, _TI.CANCEL_ACK)},
+    **{(s, _TI.REREGISTERED): s for s in _TSR_FINAL},
+    **{(s, _TI.VALIDITY_ENDED): s for s in _TSR_FINAL},
+}
+
+_TSR_SENDS_SET = (_T.PENDING_SET, _T.RECONFIRMING)
+
+
+# --- dispatch command / target point delivery ---------------------------------------------
+
+
+class DeliveryState(Enum):
+    PENDING = "pending"  # resent every resend interval until acknowledged
+    ACKNOWLEDGED = "acknowledged"
+
+
+class DeliveryInput(Enum):
+    ACK = "ack"
+    REREGISTERED = "train registered again"
+
+
+#: Dispatch command / target point delivery: (state, input) -> next state.
+DELIVERY_TRANSITIONS: Mapping[tuple[DeliveryState, DeliveryInput], DeliveryState] = {
+    (DeliveryState.PENDING, DeliveryInput.ACK): DeliveryState.ACKNOWLEDGED,
+    (DeliveryState.PENDING, DeliveryInput.REREGISTERED): DeliveryState.PENDING,
+    (DeliveryState.ACKNOWLEDGED, DeliveryInput.ACK): DeliveryState.ACKNOWLEDGED,
+    (DeliveryState.ACKNOWLEDGED, DeliveryInput.REREGISTERED): DeliveryState.ACKNOWLEDGED,
+}
+
+
+@dataclass(slots=True)
+class TsrDelivery:
+    tsr: TsrSet
+    state: TsrState = TsrState.PENDING_SET
+    next_send_s: float = 0.0
+
+
+@dataclass(slots=True)
+class Delivery:
+    message: DispatchCommand | TargetPoint
+    state: DeliveryState = DeliveryState.PENDING
+    next_send_s: float = 0.0
+
+
+@dataclass(slots=True)
+class TrainRecord:
+    """Everything the ground keeps about one train across connections."""
+
+    train_id: int
+    registered: bool = False
+    registration: RegisterRequest | None = None
+    history: PeerHistory = field(default_factory=PeerHistory)
+    tsrs: dict[int, TsrDelivery] = field(default_factory=dict)
+    dispatch_commands: dict[int, Delivery] = field(default_factory=dict)
+    target_points: dict[int, Delivery] = field(default_factory=dict)
+    running_info: HeldValue = field(default_factory=HeldValue)
+    time_offset_s: float | None = None
+
+    # The server may call these for a train that is offline; the next connection of the
+    # train delivers them after registration.
+
+    def add_tsr(self, tsr: TsrSet) -> None:
+        """Queue a TSR (idempotent for the same TSR; a reused session number is an error)."""
+        existing = self.tsrs.get(tsr.session)
+        if existing is not None:
+            if existing.tsr != tsr:
+                raise LocalProtocolError(
+                    f"TSR session {tsr.session} already used for a different restriction"
+                )
+            return
+        self.tsrs[tsr.session] = TsrDelivery(tsr)
+
+    def cancel_tsr(self, session: int) -> None:
+        """Queue the cancellation of a TSR session."""
+        delivery = self.tsrs.get(session)
+        if delivery is None:
+            raise LocalProtocolError(f"TSR session {session} was never set for this train")
+        delivery.state = transition(
+            TSR_TRANSITIONS, delivery.state, _TI.CANCEL_REQUESTED, remote=False
+        )
+        delivery.next_send_s = 0.0
+
+    def add_target_point(self, target: TargetPoint) -> None:
+        """Queue a target point; a new one under the same id replaces the old."""
+        self.target_points[target.target_id] = Delivery(target)
+
+    def add_dispatch_command(self, command: DispatchCommand) -> None:
+        """Queue a dispatch command (command numbers are used once)."""
+        if command.command_number in self.dispatch_commands:
+            raise LocalProtocolError(f"dispatch command {command.command_number} already queued")
+        self.dispatch_commands[command.command_number] = Delivery(command)
+
+
+class GroundEndpoint(Endpoint):
+    """Protocol core of the ground front server for one connection (one train).
+
+    Parameters
+    ----------
+    config
+        Ground identity and timers.
+    keys
+        Per-train keys (required when ``config.require_auth``).
+    records
+        The server's ``train id -> TrainRecord`` mapping, shared by all connections so
+        pending deliveries and replay protection survive reconnects. A private one is
+        used when omitted.
+    """
+
+    def __init__(
+        self,
+        config: GroundConfig,
+        keys: KeyStore | None = None,
+        records: MutableMapping[int, TrainRecord] | None = None,
+    ) -> None:
+        timers = config.timers
+        super().__init__(timers.cycle_s, config.max_frame_length)
+        self.config = config
+        self.records: MutableMapping[int, TrainRecord] = records if records is not None else {}
+        self.state = GroundState.AWAITING_REGISTRATION
+        self.train_id: int | None = None
+        self._channel = SecureChannel(
+            local_id=config.ground_id,
+            inbound=LinkDirection.UPLINK,
+            keys=keys,
+            require_auth=config.require_auth,
+            max_round_trip_s=timers.max_round_trip_s,
+            history_for=self._history,
+            counters=self.counters,
+        )
+        self._supervisors = {
+            t: PeriodicSupervisor(t, timers.cycle_s, timers.timeout_cycles)
+            for t in (MessageType.HEARTBEAT, MessageType.RUNNING_INFO)
+        }
+        self._next_time_check_s = 0.0
+
+    def _history(self, train_id: int) -> PeerHistory:
+        return self.record_for(train_id).history
+
+    def record_for(self, train_id: int) -> TrainRecord:
+        """The (shared) record of ``train_id``, created on first use."""
+        record = self.records.get(train_id)
+        if record is None:
+            record = self.records[train_id] = TrainRecord(train_id)
+        return record
+
+    @property
+    def record(self) -> TrainRecord | None:
+        """Record of the train on this connection (``None`` before it is known)."""
+        return None if self.train_id is None else self.record_for(self.train_id)
+
+    # --- lifecycle (adapter) --------------------------------------------------------------------
+
+    def connection_made(self, now_s: float) -> None:
+        """The server accepted a connection; call once."""
+        if self._connected or self.state is not GroundState.AWAITING_REGISTRATION:
+            raise LocalProtocolError("connection_made() called twice on one ground endpoint")
+        self._start_connection(now_s)
+        self._supervisors[MessageType.HEARTBEAT].start(now_s)
+
+    def connection_lost(self, now_s: float) -> None:
+        """The connection is gone; the endpoint is finished (make a new one next time)."""
+        self.state = transition(TRANSITIONS, self.state, _GI.CONNECTION_LOST, remote=False)
+        self._stop_connection()
+
+    # --- application API ------------------------------------------------------------------------
+
+    def send(self, message: Message, now_s: float) -> None:
+        """Send an unacknowledged message now: StationStops, RunningTimes or TimeCheck."""
+        if not isinstance(message, StationStops | RunningTimes | TimeCheck):
+            raise LocalProtocolError(
+                f"{type(message).__name__} is not sent with send(); use set_tsr(), "
+                "cancel_tsr(), send_target_point() or send_dispatch_command()"
+            )
+        self.state = transition(TRANSITIONS, self.state, _GI.SEND, remote=False)
+        self._queue(message, now_s)
+
+    def set_tsr(self, tsr: TsrSet, now_s: float) -> None:
+        """Deliver a TSR to this train; resent until acknowledged, also across reconnects."""
+        self._require_record().add_tsr(tsr)
+        self._pump(now_s)
+
+    def cancel_tsr(self, session: int, now_s: float) -> None:
+        """Cancel a TSR session; the cancel is resent until acknowledged."""
+        self._require_record().cancel_tsr(session)
+        self._pump(now_s)
+
+    def send_target_point(self, target: TargetPoint, now_s: float) -> None:
+        """Deliver a target point (a new one under the same id replaces the old)."""
+        self._require_record().add_target_point(target)
+        self._pump(now_s)
+
+    def send_dispatch_command(self, command: DispatchCommand, now_s: float) -> None:
+        """Deliver a dispatch command; resent until acknowledged."""
+        self._require_record().add_dispatch_command(command)
+        self._pump(now_s)
+
+    def tsr_state(self, session: int) -> TsrState | None:
+        record = self.record
+        delivery = None if record is None else record.tsrs.get(session)
+        return None if delivery is None else delivery.state
+
+    def _require_record(self) -> TrainRecord:
+        record = self.record
+        if record is None:
+            raise LocalProtocolError(
+                "no train on this connection yet; use a record from `records` or wait for "
+                "TrainRegistered"
+            )
+        return record
+
+    # --- timers ---------------------------------------------------------------------------------
+
+    def _link_usable(self) -> bool:
+        return self.state in _LIVE
+
+    def _tick(self, now_s: float) -> None:
+        record = self.record
+        if record is not None:
+            for delivery in record.tsrs.values():
+                if now_s >= delivery.tsr.valid_until_s:
+                    delivery.state = transition(
+                        TSR_TRANSITIONS, delivery.state, _TI.VALIDITY_ENDED, remote=False
+                    )
+        if self._connected and self.state is GroundState.REGISTERED:
+            if now_s >= self._next_time_check_s:
+                self._next_time_check_s = now_s + self.config.timers.time_check_interval_s
+                self._queue(TimeCheck(now_s), now_s)
+            self._pump(now_s)
+
+    def _extra_deadline_s(self) -> float | None:
+        record = self.record
+        if not self._connected or self.state is not GroundState.REGISTERED or record is None:
+            return None
+        times = [self._next_time_check_s]
+        times += [d.next_send_s for d in record.tsrs.values() if d.state in _TSR_SENDS_SET]
+        times += [d.next_send_s for d in record.tsrs.values() if d.state is TsrState.PENDING_CANCEL]
+        for book in (record.dispatch_commands, record.target_points):
+            times += [d.next_send_s for d in book.values() if d.state is DeliveryState.PENDING]
+        return min(times)
+
+    def _pump(self, now_s: float) -> None:
+        """Send every pending delivery that is due (only while the train is registered)."""
+        record = self.record
+        if not self._connected or self.state is not GroundState.REGISTERED or record is None:
+            return
+        resend = self.config.timers.resend_interval_s
+        for delivery in record.tsrs.values():
+            if now_s < delivery.next_send_s:
+                continue
+            message: Message
+            if delivery.state in _TSR_SENDS_SET:
+                message = delivery.tsr
+            elif delivery.state is TsrState.PENDING_CANCEL:
+                message = TsrCancel(delivery.tsr.session)
+            else:
+                continue
+            if delivery.next_send_s:
+                self.counters.resends += 1
+            delivery.next_send_s = now_s + resend
+            self._queue(message, now_s)
+        for book in (record.target_points, record.dispatch_commands):
+            for item in book.values():
+                if item.state is DeliveryState.PENDING and now_s >= item.next_send_s:
+                    if item.next_send_s:
+                        self.counters.resends += 1
+                    item.next_send_s = now_s + resend
+                    self._queue(item.message, now_s)
+
+    def _on_failure(self, now_s: float) -> None:
+        self.state = transition(TRANSITIONS, self.state, _GI.LINK_TIMEOUT, remote=False)
+        record = self.record
+        if record is not None:
+            record.running_info.valid = False
+
+    # --- received messages -------------------------------------------------------------------
+
+    def _on_message(self, frame: Frame, message: Message, now_s: float) -> None:
+        if self.train_id is None:
+            # The first authentic frame binds this connection to its train.
+            self.train_id = frame.source_id
+            self._channel.peer_id = frame.source_id
+        if isinstance(message, Heartbeat):
+            self.state = transition(TRANSITIONS, self.state, _GI.RECV_HEARTBEAT, remote=True)
+        elif isinstance(message, RegisterRequest):
+            self._on_register(message, now_s)
+        elif isinstance(message, DeregisterRequest):
+            before = self.state
+            self.state = transition(TRANSITIONS, self.state, _GI.RECV_DEREGISTER, remote=True)
+            record = self._require_record()
+            record.registered = False
+            self._supervisors[MessageType.RUNNING_INFO].stop()
+            self._queue(DeregisterResponse(), now_s)
+            if before is not GroundState.DEREGISTERED:
+                self._events.append(TrainDeregistered(record.train_id, message.reason))
+        else:
+            self.state = transition(TRANSITIONS, self.state, _GI.RECV_DATA, remote=True)
+            self._on_data(frame, message, now_s)
+
+    def _on_register(self, request: RegisterRequest, now_s: float) -> None:
+        record = self._require_record()
+        allowed = self.config.accepted_trains
+        accepted = allowed is None or record.train_id in allowed
+        trigger = _GI.RECV_REGISTER_ACCEPTED if accepted else _GI.RECV_REGISTER_REFUSED
+        before = self.state
+        self.state = transition(TRANSITIONS, self.state, trigger, remote=True)
+        if not accepted:
+            self._queue(RegisterResponse(RegisterResult.UNKNOWN_TRAIN), now_s)
+            return
+        self._queue(RegisterResponse(RegisterResult.ACCEPTED), now_s)
+        if before is GroundState.REGISTERED:
+            return  # a resent request: answer again, change nothing
+        record.registered = True
+        record.registration = request
+        self._events.append(TrainRegistered(record.train_id, request))
+        # Re-deliver everything pending, and have active TSRs confirmed again: the train
+        # may have restarted and lost them.
+        for delivery in record.tsrs.values():
+            delivery.state = transition(
+                TSR_TRANSITIONS, delivery.state, _TI.REREGISTERED, remote=False
+            )
+            delivery.next_send_s = 0.0
+        for book in (record.dispatch_commands, record.target_points):
+            for item in book.values():
+                item.state = transition(
+                    DELIVERY_TRANSITIONS, item.state, DeliveryInput.REREGISTERED, remote=False
+                )
+                item.next_send_s = 0.0
+        self._next_time_check_s = now_s
+        self._tick(now_s)
+
+    def _on_data(self, frame: Frame, message: Message, now_s: float) -> None:
+        record = self._require_record()
+        if isinstance(message, RunningInfo):
+            record.running_info = HeldValue(message, now_s, True)
+            self._deliver_data(frame, message)
+        elif isinstance(message, TsrSetAck | TsrCancelAck):
+            self._on_tsr_ack(record, message)
+        elif isinstance(message, DispatchAck | TargetPointAck):
+            self._on_delivery_ack(record, message)
+        elif isinstance(message, TimeOffsetReport):
+            record.time_offset_s = message.offset_s
+            self._deliver_data(frame, message)
+        else:
+            assert isinstance(message, PlannedCurve)
+            self._deliver_data(frame, message)
+
+    def _on_tsr_ack(self, record: TrainRecord, ack: TsrSetAck | TsrCancelAck) -> None:
+        delivery = record.tsrs.get(ack.session)
+        if delivery is None:
+            raise StateError(f"acknowledgement for TSR session {ack.session} never sent")
+        before = delivery.state
+        if isinstance(ack, TsrCancelAck):
+            trigger = _TI.CANCEL_ACK
+        elif ack.result is TsrSetResult.APPLIED:
+            trigger = _TI.ACK_APPLIED
+        else:
+            trigger = _TI.ACK_REFUSED
+        delivery.state = transition(TSR_TRANSITIONS, delivery.state, trigger, remote=True)
+        after = delivery.state
+        if before is after:
+            return
+        if after is TsrState.ACTIVE and before is TsrState.PENDING_SET:
+            self._events.append(TsrAcknowledged(record.train_id, ack.session))
+        elif after is TsrState.REFUSED:
+            assert isinstance(ack, TsrSetAck)
+            self._events.append(TsrRefusedByTrain(record.train_id, ack.session, ack.result))
+        elif after is TsrState.CANCELLED:
+            assert isinstance(ack, TsrCancelAck)
+            self._events.append(TsrCancelAcknowledged(record.train_id, ack.session, ack.result))
+
+    def _on_delivery_ack(self, record: TrainRecord, ack: DispatchAck | TargetPointAck) -> None:
+        if isinstance(ack, DispatchAck):
+            item = record.dispatch_commands.get(ack.command_number)
+            ident = ack.command_number
+        else:
+            item = record.target_points.get(ack.target_id)
+            ident = ack.target_id
+        if item is None:
+            raise StateError(f"acknowledgement for {type(ack).__name__} {ident} never sent")
+        before = item.state
+        item.state = transition(DELIVERY_TRANSITIONS, item.state, DeliveryInput.ACK, remote=True)
+        if before is item.state:
+            return
+        if isinstance(ack, DispatchAck):
+            self._events.append(DispatchAcknowledged(record.train_id, ack.command_number))
+        else:
+            self._events.append(TargetPointAcknowledged(record.train_id, ack.target_id, ack.result))

@@ -1,0 +1,165 @@
+"""Per-train HMAC keys: an in-memory key store and a loader for a key file.
+
+Each train has its own keys (shared by that train's onboard unit and the ground), each
+under a key id (1..65535). The *active* key id is the one used to send; every key present
+is accepted on receipt. That is how keys rotate without dropping the link: install the
+new key on both ends, switch the active id on each end (in any order), then remove the
+old key.
+
+Key file (TOML), readable by its owner only (``chmod 600``)::
+
+    [[train]]
+    id = 1001                   # train (onboard device) id
+    active_key = 2
+    [train.keys]
+    1 = "00112233445566778899aabbccddeeff"    # hex, 16..64 bytes
+    2 = "ffeeddccbbaa99887766554433221100"
+
+No method, repr or error message of this module ever shows key bytes.
+"""
+
+from __future__ import annotations
+
+import os
+import stat
+import tomllib
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from .errors import KeyFileError, LinkConfigError
+
+MIN_KEY_BYTES = 16
+MAX_KEY_BYTES = 64
+MAX_KEY_ID = 0xFFFF
+MAX_TRAIN_ID = 0xFFFF_FFFF
+
+
+class KeyStore:
+    """train id -> {key id -> key bytes}, plus the active key id per train."""
+
+    def __init__(self) -> None:
+        self._keys: dict[int, dict[int, bytes]] = {}
+        self._active: dict[int, int] = {}
+
+    def __repr__(self) -> str:  # never show key material
+        trains = {t: sorted(k) for t, k in self._keys.items()}
+        return f"KeyStore(key ids per train={trains}, active={self._active})"
+
+    def add_key(self, train_id: int, key_id: int, key: bytes, *, activate: bool = False) -> None:
+        """Install ``key`` for ``train_id`` under ``key_id``; the first key becomes active."""
+        if type(train_id) is not int or not 1 <= train_id <= MAX_TRAIN_ID:
+            raise LinkConfigError("train_id", train_id, f"an integer in [1, {MAX_TRAIN_ID}]")
+        if type(key_id) is not int or not 1 <= key_id <= MAX_KEY_ID:
+            raise LinkConfigError("key_id", key_id, f"an integer in [1, {MAX_KEY_ID}]")
+        if not isinstance(key, bytes) or not MIN_KEY_BYTES <= len(key) <= MAX_KEY_BYTES:
+            # Report only the length, never the key.
+            length = len(key) if isinstance(key, bytes) else type(key).__name__
+            raise LinkConfigError(
+                f"key[{train_id}][{key_id}] length",
+                length,
+                f"{MIN_KEY_BYTES}..{MAX_KEY_BYTES} bytes",
+            )
+        self._keys.setdefault(train_id, {})[key_id] = key
+        if activate or train_id not in self._active:
+            self._active[train_id] = key_id
+
+    def remove_key(self, train_id: int, key_id: int) -> None:
+        """Retire a key; frames under it are then rejected. The active key cannot go."""
+        if self._active.get(train_id) == key_id:
+            raise LinkConfigError(
+                f"key[{train_id}]", key_id, "a key id that is not the active one (rotate first)"
+            )
+        self._keys.get(train_id, {}).pop(key_id, None)
+
+    def set_active(self, train_id: int, key_id: int) -> None:
+        """Send with ``key_id`` from now on (the key must be installed)."""
+        if key_id not in self._keys.get(train_id, {}):
+            raise LinkConfigError(f"active key of train {train_id}", key_id, "an installed key id")
+        self._active[train_id] = key_id
+
+    def lookup(self, train_id: int, key_id: int) -> bytes | None:
+        """The key for verifying a frame, or ``None`` if unknown."""
+        keys = self._keys.get(train_id)
+        return None if keys is None else keys.get(key_id)
+
+    def active(self, train_id: int) -> tuple[int, bytes] | None:
+        """``(key id, key)`` to send with, or ``None`` when the train has no key."""
+        key_id = self._active.get(train_id)
+        if key_id is None:
+            return None
+        return key_id, self._keys[train_id][key_id]
+
+    def trains(self) -> frozenset[int]:
+        return frozenset(self._keys)
+
+    def key_ids(self, train_id: int) -> frozenset[int]:
+        return frozenset(self._keys.get(train_id, {}))
+
+
+def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") -> KeyStore:
+    """Build a :class:`KeyStore` from a parsed key file (see the module docstring)."""
+    store = KeyStore()
+    trains = document.get("train")
+    if not isinstance(trains, list) or not trains:
+        raise KeyFileError(f"{source}: expected at least one [[train]] table")
+    for index, entry in enumerate(trains):
+        where = f"{source}: train[{index}]"
+        if not isinstance(entry, dict):
+            raise KeyFileError(f"{where}: expected a table")
+        train_id = entry.get("id")
+        if type(train_id) is not int:
+            raise KeyFileError(f"{where}: id must be an integer train id, got {train_id!r}")
+        keys = entry.get("keys")
+        if not isinstance(keys, dict) or not keys:
+            raise KeyFileError(f"{where}: expected a non-empty [train.keys] table")
+        for key_id_text, hex_key in keys.items():
+            try:
+                key_id = int(key_id_text)
+                key = bytes.fromhex(hex_key) if isinstance(hex_key, str) else None
+            except ValueError:
+                raise KeyFileError(
+                    f"{where}: key {key_id_text!r} needs an integer id and a hex string value"
+                ) from None
+            if key is None:
+                raise KeyFileError(f"{where}: key {key_id_text!r} must be a hex string")
+            try:
+                store.add_key(train_id, key_id, key)
+            except LinkConfigError as exc:
+                raise KeyFileError(
+                    f"{where}: {exc.field} = {exc.value!r}, expected {exc.allowed}"
+                ) from None
+        active = entry.get("active_key", min(int(k) for k in keys))
+        try:
+            store.set_active(train_id, int(active))
+        except (LinkConfigError, TypeError, ValueError):
+            raise KeyFileError(
+                f"{where}: active_key {active!r} is not one of its key ids"
+            ) from None
+    return store
+
+
+def load_key_file(path: str | os.PathLike[str]) -> KeyStore:
+    """Read a key file, refusing one that group or others may read or write.
+
+    Raises :class:`KeyFileError` (and loads nothing) when the file is missing, has mode
+    bits in ``0o077`` set, or is malformed.
+    """
+    file = Path(path)
+    try:
+        mode = file.stat().st_mode
+    except OSError as exc:
+        raise KeyFileError(f"cannot read key file {file}: {exc.strerror}") from None
+    if os.name == "posix" and mode & 0o077:
+        raise KeyFileError(
+            f"key file {file} has mode {stat.S_IMODE(mode):#o}, open to group/others; "
+            f"run `chmod 600 {file}`"
+        )
+    try:
+        document = tomllib.loads(file.read_text(encoding="utf-8"))
+    except (OSError, UnicodeDecodeError) as exc:
+        raise KeyFileError(f"cannot read key file {file}: {exc}") from None
+    except tomllib.TOMLDecodeError as exc:
+        # The TOML error quotes a position, not the content, so it cannot leak a key.
+        raise KeyFileError(f"key file {file} is not valid TOML ({exc})") from None
+    return parse_key_table(document, str(file))

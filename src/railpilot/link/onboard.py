@@ -1,0 +1,395 @@
+"""The onboard endpoint (TCP client side): registration, periodic running info, TSRs.
+
+All of the onboard's protocol state lives in ONE transition table, :data:`TRANSITIONS`;
+an input that has no entry for the current state is a protocol error (a ``STATE``
+rejection of the frame, or :class:`LocalProtocolError` for a local call).
+
+Per-session TSR bookkeeping (applied once, acknowledged every time) is not a separate
+state machine: it is a set membership (active / finished) explained in docs/protocol.md.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from enum import Enum
+
+from .config import OnboardConfig, reconnect_delay_s
+from .endpoint import Endpoint, transition
+from .errors import LinkConfigError, LocalProtocolError
+from .events import (
+    AppliedTsr,
+    Deregistered,
+    DispatchCommandReceived,
+    Registered,
+    RegistrationRefused,
+    TargetPointReceived,
+    TimeChecked,
+    TsrApplied,
+    TsrCancelled,
+    TsrExpired,
+    TsrRefused,
+)
+from .frame import Frame
+from .keys import KeyStore
+from .messages import (
+    DeregisterReason,
+    DeregisterRequest,
+    DeregisterResponse,
+    DispatchAck,
+    DispatchCommand,
+    Heartbeat,
+    LinkDirection,
+    Message,
+    MessageType,
+    PlannedCurve,
+    RegisterRequest,
+    RegisterResponse,
+    RegisterResult,
+    RunningInfo,
+    RunningTimes,
+    StationStops,
+    TargetPoint,
+    TargetPointAck,
+    TargetPointResult,
+    TimeCheck,
+    TimeOffsetReport,
+    TravelDirection,
+    TsrCancel,
+    TsrCancelAck,
+    TsrCancelResult,
+    TsrSet,
+    TsrSetAck,
+    TsrSetResult,
+)
+from .safety import PeerHistory, PeriodicSupervisor, SecureChannel
+
+
+class OnboardState(Enum):
+    DISCONNECTED = "disconnected"  # no connection; the adapter reconnects with backoff
+    REGISTERING = "registering"  # connected, RegisterRequest sent, resent until answered
+    REGISTERED = "registered"  # ground manages us; running info flows; TSRs accepted
+    DEREGISTERING = "deregistering"  # DeregisterRequest sent, resent until confirmed
+    DEREGISTERED = "deregistered"  # connected but not managed (shunting, leaving line)
+    FAILED = "failed"  # a periodic message timed out; waiting for the adapter to close
+
+
+class OnboardInput(Enum):
+    CONNECTION_MADE = "connection made"  # adapter
+    CONNECTION_LOST = "connection lost"  # adapter
+    LINK_TIMEOUT = "link timeout"  # tick(): ground heartbeat timed out
+    REGISTER = "register"  # application: register again after deregistering
+    DEREGISTER = "deregister"  # application: mode change, shutdown, leaving main line
+    SEND = "send"  # application: send a data message (planned curve)
+    RECV_REGISTER_ACCEPTED = "register accepted"  # RegisterResponse(ACCEPTED)
+    RECV_REGISTER_REFUSED = "register refused"  # RegisterResponse(other)
+    RECV_DEREGISTER_CONFIRMED = "deregister confirmed"  # DeregisterResponse
+    RECV_DISPATCH = "dispatch data"  # time check, stops, times, target, TSR, command
+    RECV_HEARTBEAT = "heartbeat"
+
+
+_S = OnboardState
+_I = OnboardInput
+_CONNECTED = (_S.REGISTERING, _S.REGISTERED, _S.DEREGISTERING, _S.DEREGISTERED)
+
+#: The onboard state machine: (state, input) -> next state. Nothing else changes state.
+TRANSITIONS: Mapping[tuple[OnboardState, OnboardInput], OnboardState] = {
+    (_S.DISCONNECTED, _I.CONNECTION_MADE): _S.REGISTERING,  # register after every connect
+    (_S.REGISTERING, _I.RECV_REGISTER_ACCEPTED): _S.REGISTERED,
+    (_S.REGISTERING, _I.RECV_REGISTER_REFUSED): _S.REGISTERING,  # retry after resend interval
+    (_S.REGISTERING, _I.DEREGISTER): _S.DEREGISTERING,
+    (_S.REGISTERED, _I.RECV_REGISTER_ACCEPTED): _S.REGISTERED,  # answer to a resent request
+    (_S.REGISTERED, _I.DEREGISTER): _S.DEREGISTERING,
+    (_S.REGISTERED, _I.SEND): _S.REGISTERED,
+    (_S.REGISTERED, _I.RECV_DISPATCH): _S.REGISTERED,
+    # While deregistering, restrictive data (TSR, target points) is still obeyed.
+    (_S.DEREGISTERING, _I.RECV_DISPATCH): _S.DEREGISTERING,
+    (_S.DEREGISTERING, _I.RECV_REGISTER_ACCEPTED): _S.DEREGISTERING,  # late answer
+    (_S.DEREGISTERING, _I.RECV_DEREGISTER_CONFIRMED): _S.DEREGISTERED,
+    (_S.DEREGISTERED, _I.RECV_DEREGISTER_CONFIRMED): _S.DEREGISTERED,  # resent confirmation
+    (_S.DEREGISTERED, _I.REGISTER): _S.REGISTERING,
+    **{(s, _I.RECV_HEARTBEAT): s for s in _CONNECTED},
+    **{(s, _I.LINK_TIMEOUT): _S.FAILED for s in _CONNECTED},
+    **{(s, _I.CONNECTION_LOST): _S.DISCONNECTED for s in (*_CONNECTED, _S.FAILED)},
+}
+
+_DOWNLINK_DATA = (
+    MessageType.TIME_CHECK,
+    MessageType.STATION_STOPS,
+    MessageType.RUNNING_TIMES,
+    MessageType.TARGET_POINT,
+    MessageType.TSR_SET,
+    MessageType.TSR_CANCEL,
+    MessageType.DISPATCH_COMMAND,
+)
+
+
+class OnboardEndpoint(Endpoint):
+    """Protocol core of one train's onboard unit.
+
+    ``keys`` must hold a key for ``config.train_id`` when ``config.require_auth``.
+    The object lives as long as the onboard unit: it keeps TSRs, registration intent and
+    replay-protection state across reconnects.
+    """
+
+    def __init__(self, config: OnboardConfig, keys: KeyStore | None = None) -> None:
+        timers = config.timers
+        super().__init__(timers.cycle_s, config.max_frame_length)
+        if config.require_auth and (keys is None or keys.active(config.train_id) is None):
+            raise LinkConfigError(
+                "keys", keys, f"a KeyStore with a key for train {config.train_id} (auth required)"
+            )
+        self.config = config
+        self.state = OnboardState.DISCONNECTED
+        self._ground_history = PeerHistory()
+        self._channel = SecureChannel(
+            local_id=config.train_id,
+            inbound=LinkDirection.DOWNLINK,
+            keys=keys,
+            require_auth=config.require_auth,
+            max_round_trip_s=timers.max_round_trip_s,
+            history_for=self._history,
+            peer_id=config.ground_id,
+            key_train_id=config.train_id,
+            counters=self.counters,
+        )
+        self._supervisors = {
+            MessageType.HEARTBEAT: PeriodicSupervisor(
+                MessageType.HEARTBEAT, timers.cycle_s, timers.timeout_cycles
+            )
+        }
+        self._running_info: RunningInfo | None = None
+        self._next_running_info_s = 0.0
+        self._next_request_s = 0.0
+        self._deregister_reason: DeregisterReason | None = None
+        self.reconnect_attempts = 0
+        #: TSRs being enforced, by session number.
+        self.active_tsrs: dict[int, AppliedTsr] = {}
+        self._finished_tsrs: set[int] = set()  # cancelled or expired: never applied again
+        self.target_points: dict[int, TargetPoint] = {}
+        self._dispatch_seen: set[int] = set()
+        self.time_offset_s: float | None = None
+
+    def _history(self, peer_id: int) -> PeerHistory:
+        return self._ground_history
+
+    # --- lifecycle (adapter) --------------------------------------------------------------------
+
+    def connection_made(self, now_s: float) -> None:
+        """A TCP connection to the ground is up: start registering."""
+        self.state = transition(TRANSITIONS, self.state, _I.CONNECTION_MADE, remote=False)
+        self._start_connection(now_s)
+        self._supervisors[MessageType.HEARTBEAT].start(now_s)
+        self._send_register(now_s)
+
+    def connection_lost(self, now_s: float) -> None:
+        """The TCP connection is gone (closed by either side or after LinkFailed)."""
+        self.state = transition(TRANSITIONS, self.state, _I.CONNECTION_LOST, remote=False)
+        self._stop_connection()
+
+    def reconnect_delay_s(self, random_fraction: float) -> float:
+        """Delay before the next connection attempt; counts the attempt.
+
+        ``random_fraction`` in [0, 1) comes from the adapter's seeded generator. The count
+        resets when a registration succeeds.
+        """
+        delay = reconnect_delay_s(self.reconnect_attempts, self.config.timers, random_fraction)
+        self.reconnect_attempts += 1
+        return delay
+
+    # --- application API ------------------------------------------------------------------------
+
+    def update_running_info(self, info: RunningInfo) -> None:
+        """Set the running info sent every cycle while registered (latest value wins)."""
+        if not isinstance(info, RunningInfo):
+            raise LocalProtocolError(f"expected RunningInfo, got {type(info).__name__}")
+        self._running_info = info
+
+    def send(self, message: Message, now_s: float) -> None:
+        """Send a data message now (a :class:`PlannedCurve`); only while registered."""
+        if not isinstance(message, PlannedCurve):
+            raise LocalProtocolError(
+                f"{type(message).__name__} is not sent by the application on the onboard"
+            )
+        self.state = transition(TRANSITIONS, self.state, _I.SEND, remote=False)
+        self._queue(message, now_s)
+
+    def deregister(self, reason: DeregisterReason, now_s: float) -> None:
+        """Leave the ground's management (shunting mode, shutdown, leaving the main line)."""
+        self.state = transition(TRANSITIONS, self.state, _I.DEREGISTER, remote=False)
+        self._deregister_reason = DeregisterReason(reason)
+        self._queue(DeregisterRequest(self._deregister_reason), now_s)
+        self._next_request_s = now_s + self.config.timers.resend_interval_s
+
+    def register(self, now_s: float) -> None:
+        """Register again after a deregistration (the first one is automatic)."""
+        self.state = transition(TRANSITIONS, self.state, _I.REGISTER, remote=False)
+        self._send_register(now_s)
+
+    # --- timers ---------------------------------------------------------------------------------
+
+    def _link_usable(self) -> bool:
+        return self.state in _CONNECTED
+
+    def _tick(self, now_s: float) -> None:
+        for session, tsr in list(self.active_tsrs.items()):
+            if now_s >= tsr.valid_until_s:
+                del self.active_tsrs[session]
+                self._finished_tsrs.add(session)
+                self._events.append(TsrExpired(session))
+        if not self._connected:
+            return
+        timers = self.config.timers
+        if self.state is OnboardState.REGISTERING and now_s >= self._next_request_s:
+            self.counters.resends += 1
+            self._send_register(now_s)
+        elif self.state is OnboardState.DEREGISTERING and now_s >= self._next_request_s:
+            assert self._deregister_reason is not None
+            self.counters.resends += 1
+            self._queue(DeregisterRequest(self._deregister_reason), now_s)
+            self._next_request_s = now_s + timers.resend_interval_s
+        elif (
+            self.state is OnboardState.REGISTERED
+            and self._running_info is not None
+            and now_s >= self._next_running_info_s
+        ):
+            self._next_running_info_s = now_s + timers.cycle_s
+            self._queue(self._running_info, now_s)
+
+    def _extra_deadline_s(self) -> float | None:
+        times = [t.valid_until_s for t in self.active_tsrs.values()]
+        if self.state in (OnboardState.REGISTERING, OnboardState.DEREGISTERING):
+            times.append(self._next_request_s)
+        if self.state is OnboardState.REGISTERED and self._running_info is not None:
+            times.append(self._next_running_info_s)
+        return min(times) if times else None
+
+    def _on_failure(self, now_s: float) -> None:
+        self.state = transition(TRANSITIONS, self.state, _I.LINK_TIMEOUT, remote=False)
+
+    def _send_register(self, now_s: float) -> None:
+        c = self.config
+        self._queue(
+            RegisterRequest(c.train_number, c.loco_number, c.driver_id, c.train_length_m), now_s
+        )
+        self._next_request_s = now_s + c.timers.resend_interval_s
+
+    # --- received messages -------------------------------------------------------------------
+
+    def _on_message(self, frame: Frame, message: Message, now_s: float) -> None:
+        if isinstance(message, Heartbeat):
+            self.state = transition(TRANSITIONS, self.state, _I.RECV_HEARTBEAT, remote=True)
+        elif isinstance(message, RegisterResponse):
+            accepted = message.result is RegisterResult.ACCEPTED
+            trigger = _I.RECV_REGISTER_ACCEPTED if accepted else _I.RECV_REGISTER_REFUSED
+            before = self.state
+            self.state = transition(TRANSITIONS, self.state, trigger, remote=True)
+            if accepted and before is OnboardState.REGISTERING:
+                self.reconnect_attempts = 0
+                self._next_running_info_s = now_s
+                self._events.append(Registered())
+            elif not accepted:
+                self._events.append(RegistrationRefused(message.result))
+        elif isinstance(message, DeregisterResponse):
+            before = self.state
+            self.state = transition(
+                TRANSITIONS, self.state, _I.RECV_DEREGISTER_CONFIRMED, remote=True
+            )
+            if before is OnboardState.DEREGISTERING:
+                assert self._deregister_reason is not None
+                self._events.append(Deregistered(self._deregister_reason))
+        else:
+            assert message.TYPE in _DOWNLINK_DATA
+            self.state = transition(TRANSITIONS, self.state, _I.RECV_DISPATCH, remote=True)
+            self._on_data(frame, message, now_s)
+
+    def _on_data(self, frame: Frame, message: Message, now_s: float) -> None:
+        if isinstance(message, TsrSet):
+            self._on_tsr_set(message, now_s)
+        elif isinstance(message, TsrCancel):
+            self._on_tsr_cancel(message, now_s)
+        elif isinstance(message, TargetPoint):
+            if self.target_points.get(message.target_id) != message:
+                self.target_points[message.target_id] = message
+                self._events.append(TargetPointReceived(message))
+            self._queue(TargetPointAck(message.target_id, TargetPointResult.ACCEPTED), now_s)
+        elif isinstance(message, DispatchCommand):
+            if message.command_number not in self._dispatch_seen:
+                self._dispatch_seen.add(message.command_number)
+                self._events.append(DispatchCommandReceived(message))
+            self._queue(DispatchAck(message.command_number), now_s)
+        elif isinstance(message, TimeCheck):
+            offset = now_s - message.ground_time_s
+            self.time_offset_s = offset
+            self._events.append(TimeChecked(message.ground_time_s, offset))
+            self._queue(TimeOffsetReport(message.ground_time_s, now_s, offset), now_s)
+        else:
+            assert isinstance(message, StationStops | RunningTimes)
+            self._deliver_data(frame, message)
+
+    def _on_tsr_set(self, tsr: TsrSet, now_s: float) -> None:
+        session = tsr.session
+        applied = self.active_tsrs.get(session)
+        if applied is not None:
+            # A resend (our ack was lost): acknowledge again, do not apply twice. A
+            # different restriction under the same session number is refused.
+            same = (applied.start_m, applied.end_m, applied.limit_mps) == (
+                tsr.start_m,
+                tsr.end_m,
+                tsr.limit_mps,
+            ) and (applied.valid_from_s, applied.valid_until_s) == (
+                tsr.valid_from_s,
+                tsr.valid_until_s,
+            )
+            result = TsrSetResult.APPLIED if same else TsrSetResult.INVALID
+        elif session in self._finished_tsrs:
+            result = TsrSetResult.EXPIRED
+        elif tsr.start_m == tsr.end_m or tsr.valid_until_s <= tsr.valid_from_s:
+            result = TsrSetResult.INVALID
+        elif tsr.valid_until_s <= now_s:
+            result = TsrSetResult.EXPIRED
+        else:
+            result = TsrSetResult.APPLIED
+            applied = self._extend(tsr)
+            self.active_tsrs[session] = applied
+            self._events.append(TsrApplied(applied))
+        if result is not TsrSetResult.APPLIED and applied is None:
+            self._events.append(TsrRefused(session, result))
+        self._queue(TsrSetAck(session, result), now_s)
+
+    def _extend(self, tsr: TsrSet) -> AppliedTsr:
+        """Extend the zone by one train length so the tail obeys the limit too (2.5)."""
+        low, high = sorted((tsr.start_m, tsr.end_m))
+        length = self.config.train_length_m
+        direction = self._running_info.direction if self._running_info else TravelDirection.UNKNOWN
+        if direction is TravelDirection.UP:
+            high += length
+        elif direction is TravelDirection.DOWN:
+            low = max(0.0, low - length)
+        else:  # direction unknown: extend both ends, the safe side
+            high += length
+            low = max(0.0, low - length)
+        return AppliedTsr(
+            tsr.session,
+            tsr.start_m,
+            tsr.end_m,
+            low,
+            high,
+            tsr.limit_mps,
+            tsr.valid_from_s,
+            tsr.valid_until_s,
+        )
+
+    def _on_tsr_cancel(self, cancel: TsrCancel, now_s: float) -> None:
+        session = cancel.session
+        if self.active_tsrs.pop(session, None) is not None:
+            self._finished_tsrs.add(session)
+            self._events.append(TsrCancelled(session))
+            result = TsrCancelResult.CANCELLED
+        elif session in self._finished_tsrs:
+            result = TsrCancelResult.CANCELLED  # resent cancel: our ack was lost
+        else:
+            # Cancel overtook (or replaced) a set we never got: remember it so a late set
+            # of this session is never applied.
+            self._finished_tsrs.add(session)
+            result = TsrCancelResult.UNKNOWN_SESSION
+        self._queue(TsrCancelAck(session, result), now_s)

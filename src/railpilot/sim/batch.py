@@ -1,0 +1,384 @@
+"""Monte Carlo: many runs of one scenario with sampled plant parameters.
+
+The ATO (controller, feed-forward lead, resistance model) is fixed from the nominal
+scenario -- it cannot know the sampled plant -- and each run gets its own plant:
+mass, delays, lags, resistance, brake effort, outside force and initial speed drawn
+from the distributions of the scenario's ``[montecarlo]`` table, and its own seed for
+the random disturbance and the speed noise.
+
+Runs go in chunks through one parallel Numba kernel (``prange`` over the runs of a
+chunk, on all local cores); only each run's scalar metrics are kept (15 floats a run),
+never its time series, so memory stays flat however many runs. With a Dask scheduler
+address the chunks run on a ``dask.distributed`` cluster instead; every run's
+parameters and seed depend only on the spec's seed and the run's index, so a local
+and a distributed sweep give the same numbers, bit for bit, and any single run can be
+replayed (:func:`replay_scenario`) and plotted.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numba import njit, prange
+
+from railpilot.brakes.ep_blend import EPBrake
+from railpilot.errors import ConfigError
+from railpilot.scenario.model import ATOModel, Scenario
+from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, Distribution, MonteCarloSpec
+from railpilot.sim import engine
+from railpilot.sim.run import KernelInputs, ato_brake_model, make_controller, metrics_dict
+from railpilot.sim.run import prepare as prepare_inputs
+from railpilot.units import kmh_to_mps, tonne_to_kg
+
+
+def _scale_davis(s: Scenario, f: float) -> Scenario:
+    t = s.train
+    return replace(
+        s,
+        train=replace(t, davis_a0=t.davis_a0 * f, davis_a1=t.davis_a1 * f, davis_a2=t.davis_a2 * f),
+    )
+
+
+def _delay(s: Scenario, value: float) -> Scenario:
+    if isinstance(s.brake, EPBrake):
+        # the EP brake's delay line works in whole steps: sample at the step's resolution
+        value = round(value / s.sim.dt_s) * s.sim.dt_s
+    return replace(s, brake=replace(s.brake, delay_s=value))
+
+
+def _brake_field(name: str) -> Callable[[Scenario, float], Scenario]:
+    def apply(s: Scenario, value: float) -> Scenario:
+        if not hasattr(s.brake, name):
+            raise ConfigError(
+                f"montecarlo.vary.brake.{name}",
+                name,
+                f"a parameter of this scenario's brake ({type(s.brake).__name__})",
+            )
+        return replace(s, brake=replace(s.brake, **{name: value}))
+
+    return apply
+
+
+def _set(
+    field_name: str, convert: Callable[[float], float] = float
+) -> Callable[[Scenario, float], Scenario]:
+    return lambda s, v: replace(s, **{field_name: convert(v)})
+
+
+#: How each parameter a sweep can vary (scenario/montecarlo.py lists them) changes
+#: the scenario.
+APPLY: dict[str, Callable[[Scenario, float], Scenario]] = {
+    "train.mass_t": lambda s, v: replace(s, train=replace(s.train, mass_kg=tonne_to_kg(v))),
+    "train.davis_scale": _scale_davis,
+    "brake.delay_s": _delay,
+    "brake.lag_s": _brake_field("lag_s"),
+    "brake.air_lag_s": _brake_field("air_lag_s"),
+    "brake.electric_lag_s": _brake_field("electric_lag_s"),
+    "brake.gain": _set("brake_gain"),
+    "disturbance.constant_kn": lambda s, v: replace(
+        s, disturbance=replace(s.disturbance, constant_n=v * 1e3)
+    ),
+    "initial_speed_kmh": _set("initial_speed_mps", kmh_to_mps),
+    "realism.wheel_scale_error": lambda s, v: replace(
+        s, realism=replace(s.realism, wheel_scale_error=v)
+    ),
+    "realism.adhesion": lambda s, v: replace(s, realism=replace(s.realism, adhesion=v)),
+}
+assert set(APPLY) == set(VARIABLE_PARAMETERS), "every variable parameter needs an APPLY"
+
+
+def check_spec(scenario: Scenario, spec: MonteCarloSpec) -> None:
+    """Raise ConfigError now if a sampled parameter cannot apply to ``scenario``."""
+    nominal = freeze_ato(scenario)
+    for dist in spec.vary:
+        for value in (dist.low, dist.high):
+            if np.isfinite(value):
+                _variant(nominal, {dist.key: value}, 0)
+
+
+def freeze_ato(scenario: Scenario) -> Scenario:
+    """The scenario with the ATO's model fixed to the nominal plant's values.
+
+    In a sweep the plant varies and the ATO must not follow it: its resistance model
+    and brake lead are pinned to the nominal ones (the load-weighed mass still follows
+    the true mass: load weighing measures it).
+    """
+    t = scenario.train
+    davis = scenario.ato.davis or (t.davis_a0, t.davis_a1, t.davis_a2)
+    lead = (
+        scenario.ato.lead_s if scenario.ato.lead_s is not None else sum(ato_brake_model(scenario))
+    )
+    return replace(scenario, ato=ATOModel(mass_kg=scenario.ato.mass_kg, davis=davis, lead_s=lead))
+
+
+def replay_scenario(scenario: Scenario, spec: MonteCarloSpec, run: int) -> Scenario:
+    """The exact scenario of run ``run`` of a sweep, to simulate and plot it alone."""
+    if not 0 <= run < spec.runs:
+        raise ConfigError("run", run, f"a run index in [0, {spec.runs})")
+    values, seeds = spec.samples()
+    variant = _variant(
+        freeze_ato(scenario), {k: float(v[run]) for k, v in values.items()}, int(seeds[run])
+    )
+    return variant
+
+
+def _variant(nominal: Scenario, values: dict[str, float], seed: int) -> Scenario:
+    s = replace(
+        nominal,
+        disturbance=replace(nominal.disturbance, seed=seed),
+        realism=replace(nominal.realism, seed=seed + 1),
+    )
+    for key, value in values.items():
+        try:
+            s = APPLY[key](s, value)
+        except ConfigError as exc:
+            raise ConfigError(f"montecarlo.vary.{key}", value, exc.allowed) from exc
+    return s
+
+
+@njit(parallel=True, cache=True)
+def run_batch_kernel(
+    n_steps: int,
+    dt: float,
+    control_every: int,
+    train: np.ndarray,
+    act_kind: int,
+    brake_p: np.ndarray,
+    line_edges: np.ndarray,
+    line_values: np.ndarray,
+    dist_const: np.ndarray,
+    reg_start: np.ndarray,
+    reg_end: np.ndarray,
+    reg_force: np.ndarray,
+    random_n: np.ndarray,
+    ref_x: np.ndarray,
+    ref_v: np.ndarray,
+    ref_a: np.ndarray,
+    ref_a_ff: np.ndarray,
+    ato: np.ndarray,
+    kind: int,
+    ctrl_p: np.ndarray,
+    ctrl_s0: np.ndarray,
+    real: np.ndarray,
+    speed_noise: np.ndarray,
+    balises: np.ndarray,
+    metrics: np.ndarray,
+) -> None:
+    """:func:`engine.run_kernel` for every row of the per-run 2-D arrays, in parallel."""
+    empty = np.zeros((0, engine.N_CHANNELS))
+    for i in prange(train.shape[0]):
+        engine.run_kernel(
+            n_steps,
+            dt,
+            control_every,
+            train[i],
+            act_kind,
+            brake_p[i],
+            line_edges,
+            line_values,
+            dist_const[i],
+            reg_start,
+            reg_end,
+            reg_force,
+            random_n[i],
+            ref_x,
+            ref_v,
+            ref_a,
+            ref_a_ff,
+            ato[i],
+            kind,
+            ctrl_p,
+            ctrl_s0,
+            real,
+            speed_noise[i],
+            balises,
+            empty,
+            1,
+            metrics[i],
+        )
+
+
+@dataclass
+class _Chunk:
+    train: np.ndarray
+    brake_p: np.ndarray
+    ato: np.ndarray
+    dist_const: np.ndarray
+    random_n: np.ndarray
+    speed_noise: np.ndarray
+
+
+def _pack_chunk(
+    nominal: Scenario,
+    controller_name: str,
+    base: KernelInputs,
+    values: dict[str, np.ndarray],
+    seeds: np.ndarray,
+    start: int,
+    stop: int,
+) -> _Chunk:
+    rows = []
+    for i in range(start, stop):
+        variant = _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i]))
+        inp = prepare_inputs(variant, make_controller(nominal, controller_name), reference=base)
+        rows.append(inp)
+    return _Chunk(
+        train=np.stack([r.train for r in rows]),
+        brake_p=np.stack([r.brake_p for r in rows]),
+        ato=np.stack([r.ato for r in rows]),
+        dist_const=np.array([r.dist_const for r in rows]),
+        random_n=np.stack([r.random_n for r in rows]),
+        speed_noise=np.stack([r.speed_noise for r in rows]),
+    )
+
+
+def run_chunk(
+    scenario: Scenario, controller_name: str, spec: MonteCarloSpec, start: int, stop: int
+) -> np.ndarray:
+    """Metrics ``(stop - start, N_METRICS)`` of runs ``start..stop``; runs anywhere.
+
+    Pure function of its arguments (this is what a Dask worker executes).
+    """
+    nominal = freeze_ato(scenario)
+    base = prepare_inputs(nominal, make_controller(nominal, controller_name))
+    values, seeds = spec.samples()
+    chunk = _pack_chunk(nominal, controller_name, base, values, seeds, start, stop)
+    metrics = np.zeros((stop - start, engine.N_METRICS))
+    run_batch_kernel(
+        base.n_steps,
+        base.dt,
+        base.control_every,
+        chunk.train,
+        base.act_kind,
+        chunk.brake_p,
+        base.line_edges,
+        base.line_values,
+        chunk.dist_const,
+        base.reg_start,
+        base.reg_end,
+        base.reg_force,
+        chunk.random_n,
+        base.ref_x,
+        base.ref_v,
+        base.ref_a,
+        base.ref_a_ff,
+        chunk.ato,
+        base.kind,
+        base.ctrl_p,
+        base.ctrl_s0,
+        base.real,
+        chunk.speed_noise,
+        base.balises,
+        metrics,
+    )
+    return metrics
+
+
+@dataclass
+class MonteCarloResult:
+    """Per-run scalar metrics of a sweep and their statistics."""
+
+    scenario: str
+    controller: str
+    spec: MonteCarloSpec
+    metrics: np.ndarray  # (runs, N_METRICS)
+    seeds: np.ndarray
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def stop_errors(self) -> np.ndarray:
+        return self.metrics[:, engine.M_STOP_ERR]
+
+    def stats(self, tolerance_m: float = 0.30) -> dict[str, Any]:
+        """Mean, std, percentiles of |stop error|, share within tolerance, worst run."""
+        err = self.stop_errors
+        stopped = np.isfinite(err)
+        abs_err = np.where(stopped, np.abs(err), np.inf)
+        worst = int(np.argmax(abs_err))
+        finite = np.abs(err[stopped])
+        jerk = self.metrics[:, engine.M_MAX_JERK]
+
+        def pct(q: float) -> float | None:
+            return float(np.percentile(finite, q)) if finite.size else None
+
+        return {
+            "runs": int(len(err)),
+            "not_stopped": int((~stopped).sum()),
+            "mean_stop_error_m": float(np.mean(err[stopped])) if finite.size else None,
+            "std_stop_error_m": float(np.std(err[stopped])) if finite.size else None,
+            "p50_abs_stop_error_m": pct(50),
+            "p95_abs_stop_error_m": pct(95),
+            "p99_abs_stop_error_m": pct(99),
+            "max_abs_stop_error_m": float(abs_err.max()) if stopped.all() else None,
+            f"share_within_{tolerance_m:.2f}_m".replace(".", "_"): float(
+                np.mean(abs_err <= tolerance_m)
+            ),
+            "max_jerk_mps3": float(jerk.max()),
+            "p99_max_jerk_mps3": float(np.percentile(jerk, 99)),
+            "max_speed_error_mps": float(self.metrics[:, engine.M_MAX_VERR].max()),
+            "worst_run": worst,
+            "worst_run_seed": int(self.seeds[worst]),
+            "worst_run_values": {k: float(v[worst]) for k, v in self.values.items()},
+            "worst_run_metrics": metrics_dict(self.metrics[worst]),
+        }
+
+
+def _chunks(spec: MonteCarloSpec) -> Iterator[tuple[int, int]]:
+    for start in range(0, spec.runs, spec.chunk):
+        yield start, min(start + spec.chunk, spec.runs)
+
+
+def run_montecarlo(
+    scenario: Scenario,
+    controller_name: str,
+    spec: MonteCarloSpec,
+    *,
+    progress: bool = True,
+    scheduler: str | None = None,
+) -> MonteCarloResult:
+    """Run the sweep locally (all cores) or on the Dask cluster at ``scheduler``."""
+    values, seeds = spec.samples()
+    check_spec(scenario, spec)  # a key that cannot apply fails now, not in a worker
+    metrics = np.zeros((spec.runs, engine.N_METRICS))
+    chunks = list(_chunks(spec))
+    bar = _progress(len(chunks), spec.runs, progress)
+    if scheduler is None:
+        for start, stop in chunks:
+            metrics[start:stop] = run_chunk(scenario, controller_name, spec, start, stop)
+            bar(stop - start)
+    else:
+        from dask.distributed import Client, as_completed
+
+        with Client(scheduler) as client:
+            futures = {
+                client.submit(
+                    run_chunk, scenario, controller_name, spec, start, stop, pure=False
+                ): (start, stop)
+                for start, stop in chunks
+            }
+            for future in as_completed(futures):
+                start, stop = futures[future]
+                metrics[start:stop] = future.result()
+                bar(stop - start)
+    bar(0, close=True)
+    return MonteCarloResult(scenario.name, controller_name, spec, metrics, seeds, values)
+
+
+def _progress(n_chunks: int, runs: int, enabled: bool) -> Callable[..., None]:
+    """A tqdm bar on stderr (only when stderr is a terminal and progress is wanted)."""
+    if not enabled or not sys.stderr.isatty():
+        return lambda n, close=False: None
+    from tqdm import tqdm
+
+    bar = tqdm(total=runs, unit="run", file=sys.stderr)
+
+    def update(n: int, close: bool = False) -> None:
+        bar.update(n)
+        if close:
+            bar.close()
+
+    return update

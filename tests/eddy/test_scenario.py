@@ -1,0 +1,65 @@
+"""Scenario validation errors and the example files."""
+
+import tomllib
+from pathlib import Path
+
+import pytest
+
+from railpilot.eddy.scenario import EddyScenario
+from railpilot.errors import ScenarioError
+
+EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
+BASE = {"kind": "eddy-brake", "torque_demand_nm": 3500, "initial_speed_kmh": 160}
+
+
+@pytest.mark.parametrize("name", ["eddy_case1.toml", "eddy_case2.toml"])
+def test_examples_load(name):
+    s = EddyScenario.from_mapping(tomllib.loads((EXAMPLES / name).read_text()))
+    assert s.torque_demand_nm in (3500.0, 4500.0)
+
+
+@pytest.mark.parametrize(
+    ("patch", "field"),
+    [
+        ({"speed": 1}, "speed"),
+        ({"kind": "ep-brake"}, "kind"),
+        ({"controller": "lqr"}, "controller"),
+        ({"torque_demand_nm": -1}, "torque_demand_nm"),
+        ({"torque_demand_nm": "big"}, "torque_demand_nm"),
+        ({"initial_speed_kmh": 0}, "initial_speed_kmh"),
+        ({"dt_s": 0.5}, "dt_s"),
+        ({"record_every": 1.5}, "record_every"),
+        ({"pid": {"kp": 1, "kq": 2}}, "pid.kq"),
+        ({"coil": {"inductance_h": 0}}, "coil.inductance_h"),
+        ({"coil": {"current_limit_a": 1000}}, "coil.current_limit_a"),
+        ({"brake": {"air_gap": 0.004}}, "brake.air_gap"),
+        ({"train": {"axle_mass_kg": True}}, "train.axle_mass_kg"),
+        ({"table": {"csv": "x.csv", "max_current_a": 10}}, "table"),
+        ({"fuzzy": {"e_scale": 0}}, "fuzzy"),
+    ],
+)
+def test_bad_input_names_the_key(patch, field):
+    data = {**BASE, **patch}
+    with pytest.raises(ScenarioError) as info:
+        EddyScenario.from_mapping(data)
+    assert info.value.field == field
+    assert "expected" in str(info.value)
+
+
+def test_missing_required_key():
+    with pytest.raises(ScenarioError, match="initial_speed_kmh"):
+        EddyScenario.from_mapping({"torque_demand_nm": 3500})
+
+
+def test_user_csv_table(tmp_path):
+    from railpilot.eddy.table import TorqueTable
+
+    (tmp_path / "fe.csv").write_text(
+        TorqueTable.from_model(current_step_a=10, speed_step_kmh=5).to_csv_text()
+    )
+    s = EddyScenario.from_mapping(
+        {**BASE, "table": {"csv": "fe.csv"}, "duration_s": 2}, base_dir=tmp_path
+    )
+    result, metrics = s.run("pid")
+    assert result.metadata["table_source"] == "fe.csv"
+    assert metrics.rise_time_s > 0

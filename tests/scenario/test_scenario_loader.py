@@ -1,0 +1,247 @@
+"""Scenario files (railpilot.scenario.loader): bad input is named, good input loads.
+
+Each bad case must raise ScenarioError whose message names the dotted key, the
+offending value and what is allowed, before anything runs.
+"""
+
+import pytest
+
+from railpilot.errors import ScenarioError
+from railpilot.scenario.loader import load_scenario, scenario_from_mapping
+from railpilot.units import kmh_to_mps
+
+MINIMAL = """\
+name = "minimal"
+
+[train]
+mass_t = 300.0
+davis = [0.5, 0.002, 0.0001]
+
+[reference]
+shape = "constant"
+start_km = 1.2
+v0_kmh = 54.0
+decel_mps2 = 0.6
+
+[controller]
+name = "pid"
+
+[sim]
+dt_s = 0.01
+duration_s = 40.0
+"""
+
+
+def test_minimal_file_loads_with_units_converted(tmp_path):
+    path = tmp_path / "minimal.toml"
+    path.write_text(MINIMAL)
+    scenario = load_scenario(path)
+    assert scenario.name == "minimal"
+    assert scenario.train.mass_kg == 300e3
+    assert scenario.train.davis_a1 == 0.002
+    assert scenario.reference.start_m == 1200.0
+    assert scenario.reference.v0_mps == pytest.approx(kmh_to_mps(54.0))
+    # 15 m/s at 0.6 m/s^2 -> 187.5 m past km 1.2
+    assert scenario.reference.stop_m == pytest.approx(1387.5)
+    assert scenario.controller.name == "pid"
+    assert scenario.sim.n_steps == 4000
+
+
+def test_empty_mapping_gives_paper000_defaults():
+    scenario = scenario_from_mapping({})
+    assert scenario.train.mass_kg == 536e3
+    assert scenario.brake.delay_s == 0.3
+    assert scenario.brake.air_lag_s == 0.65
+    assert scenario.controller.name == "smarc"
+
+
+def test_units_at_the_edge_become_si():
+    scenario = scenario_from_mapping(
+        {
+            "train": {"electric_brake": {"max_force_kn": 300.0, "max_power_kw": 4000.0}},
+            "brake": {"fade_rate_kn_per_s": 200.0},
+            "disturbance": {
+                "constant_kn": -5.0,
+                "regions": [{"start_km": 1.0, "end_km": 1.5, "force_kn": 10.0}],
+            },
+            "line": {"gradients": [{"start_km": 0.5, "end_km": 0.8, "permille": 3.0}]},
+        }
+    )
+    assert scenario.train.electric_brake.max_force_n == 300e3
+    assert scenario.train.electric_brake.max_power_w == 4e6
+    assert scenario.brake.fade_rate_n_per_s == 200e3
+    assert scenario.disturbance.constant_n == -5e3
+    assert scenario.disturbance.regions[0].start_m == 1000.0
+    assert scenario.disturbance.regions[0].force_n == 10e3
+    assert scenario.line.gradients[0].end_m == 800.0
+
+
+def test_controller_parameter_lists_become_tuples():
+    scenario = scenario_from_mapping(
+        {"controller": {"smarc": {"gamma": [0.1, 0.2], "theta_bounds": [[0.8, 1.3], [-0.2, 0.2]]}}}
+    )
+    params = scenario.controller.params["smarc"]
+    assert params["gamma"] == (0.1, 0.2)
+    assert params["theta_bounds"] == ((0.8, 1.3), (-0.2, 0.2))
+
+
+BAD = [
+    # (case, mapping, dotted key, value as printed, fragment of what is allowed)
+    ("unknown key", {"train": {"mas_t": 500}}, "train.mas_t", "500", "known key"),
+    ("unknown table", {"brakes": {}}, "brakes", "{}", "known key"),
+    ("wrong type", {"train": {"mass_t": "heavy"}}, "train.mass_t", "'heavy'", "finite number"),
+    (
+        "bool is not a number",
+        {"brake": {"delay_s": True}},
+        "brake.delay_s",
+        "True",
+        "finite number",
+    ),
+    ("negative mass", {"train": {"mass_t": -5}}, "train.mass_t", "-5", "> 0"),
+    ("not an integer", {"train": {"motor_cars": 4.5}}, "train.motor_cars", "4.5", "integer"),
+    (
+        "wrong list length",
+        {"train": {"davis": [1, 2]}},
+        "train.davis",
+        "[1, 2]",
+        "list of 3 numbers",
+    ),
+    (
+        "negative rotating mass",
+        {"train": {"rotating_mass_factor": -0.1}},
+        "train.rotating_mass_factor",
+        "-0.1",
+        ">= 0",
+    ),
+    (
+        "control period not a multiple of dt",
+        {"sim": {"control_period_s": 0.015}},
+        "sim.control_period_s",
+        "0.015",
+        "whole multiple",
+    ),
+    ("step too long", {"sim": {"dt_s": 0.5}}, "sim.dt_s", "0.5", "(0, 0.1]"),
+    (
+        "delay not a multiple of dt",
+        {"brake": {"delay_s": 0.305}},
+        "brake.delay_s",
+        "0.305",
+        "whole number of simulation steps",
+    ),
+    (
+        "more cut-out cars than motor cars",
+        {"brake": {"cutout_cars": 5}},
+        "brake.cutout_cars",
+        "5",
+        "at most",
+    ),
+    ("unknown controller", {"controller": {"name": "lqr"}}, "controller.name", "'lqr'", "one of"),
+    (
+        "unknown controller parameter",
+        {"controller": {"pid": {"kq": 1.0}}},
+        "controller.pid.kq",
+        "1.0",
+        "kp",
+    ),
+    (
+        "bad controller parameter value",
+        {"controller": {"smarc": {"phi": -1.0}}},
+        "controller.smarc",
+        "{'phi': -1.0}",
+        "phi = -1.0 is not allowed",
+    ),
+    (
+        "unknown reference shape",
+        {"reference": {"shape": "parabolic"}},
+        "reference.shape",
+        "'parabolic'",
+        "one of",
+    ),
+    (
+        "constant reference without deceleration",
+        {"reference": {"shape": "constant"}},
+        "reference.decel_mps2",
+        "None",
+        "required",
+    ),
+    (
+        "backwards segment",
+        {"line": {"gradients": [{"start_km": 2, "end_km": 1, "permille": 3}]}},
+        "line.gradients[0]",
+        "",
+        "start_km < end_km",
+    ),
+    (
+        "segment missing a key",
+        {"line": {"gradients": [{"start_km": 2, "end_km": 3}]}},
+        "line.gradients[0].permille",
+        "None",
+        "required",
+    ),
+    ("table expected", {"train": 3}, "train", "3", "a table"),
+    ("unsupported kind", {"kind": "maglev"}, "kind", "'maglev'", "ep-braking"),
+]
+
+
+@pytest.mark.parametrize(
+    ("mapping", "key", "value", "allowed"), [pytest.param(*case[1:], id=case[0]) for case in BAD]
+)
+def test_bad_input_raises_scenario_error_naming_key_value_and_allowed(mapping, key, value, allowed):
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_mapping(mapping)
+    message = str(info.value)
+    assert info.value.field == key
+    assert message.startswith(f"{key} = {value}")
+    assert allowed in message
+
+
+BAD_IN_FILE_UNITS = [
+    pytest.param(
+        {"train": {"electric_brake": {"max_force_kn": -1.0}}},
+        "train.electric_brake.max_force_kn",
+        -1.0,
+        id="electric brake force in kN",
+    ),
+    pytest.param(
+        {"brake": {"fade_rate_kn_per_s": -5.0}},
+        "brake.fade_rate_kn_per_s",
+        -5.0,
+        id="fade rate in kN/s",
+    ),
+    pytest.param({"ato": {"mass_t": -1.0}}, "ato.mass_t", -1.0, id="ATO mass in t"),
+    pytest.param(
+        {"reference": {"final_decel_mps2": 0.9}},
+        "reference.final_decel_mps2",
+        0.9,
+        id="reference key name",
+    ),
+]
+
+
+@pytest.mark.parametrize(("mapping", "key", "value"), BAD_IN_FILE_UNITS)
+def test_error_names_the_key_and_value_as_written_in_the_file(mapping, key, value):
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_mapping(mapping)
+    assert info.value.field == key
+    assert info.value.value == value
+
+
+def test_negative_seed_is_rejected_at_load():
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_mapping({"disturbance": {"random_std_kn": 10.0, "seed": -1}})
+    assert info.value.field == "disturbance.seed"
+
+
+def test_missing_file_is_a_scenario_error(tmp_path):
+    missing = tmp_path / "nope.toml"
+    with pytest.raises(ScenarioError, match="existing TOML file") as info:
+        load_scenario(missing)
+    assert str(missing) in str(info.value)
+
+
+def test_malformed_toml_is_a_scenario_error(tmp_path):
+    path = tmp_path / "bad.toml"
+    path.write_text("[train\nmass_t = 5\n")
+    with pytest.raises(ScenarioError, match="valid TOML") as info:
+        load_scenario(path)
+    assert str(path) in str(info.value)
