@@ -18,7 +18,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("scenario", type=Path, help="scenario TOML file")
     p.add_argument(
-        "--controller", choices=("pid", "smarc"), help="override the scenario's controller"
+        "--controller",
+        choices=("pid", "smarc", "qsmc", "open_loop", "fuzzy", "fuzzy_pi"),
+        help="override the scenario's controller (pid, smarc, qsmc for braking scenarios; "
+        "open_loop, pid, fuzzy, fuzzy_pi for eddy-brake ones)",
     )
     p.add_argument("--out", type=Path, help="folder for time series and figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
@@ -44,7 +47,7 @@ def run(args: argparse.Namespace) -> int:
         stem = result.meta["controller"]
         files.append(str(result.to_csv(args.out / f"{stem}.csv")))
         files.append(str(result.to_parquet(args.out / f"{stem}.parquet")))
-        co = kmh_to_mps(scenario.brake.changeover_kmh)
+        co = kmh_to_mps(scenario.changeover_kmh)
         runs = {stem: result}
         files.append(
             str(ep_plots.speed_distance(runs, args.out / f"{stem}_speed_distance.png", co))
@@ -80,17 +83,15 @@ def _run_eddy(args: argparse.Namespace, data: dict[str, Any]) -> int:
         path = args.out / f"{scenario.name}.csv"
         result.to_pandas().to_csv(path)
         files.append(str(path))
-    summary = {
-        "scenario": scenario.name,
-        "controller": args.controller or scenario.controller,
-        "metrics": metrics.to_dict(),
-        "files": files,
-    }
+    controller = args.controller or scenario.controller
+    values = metrics.to_dict()
     if args.json:
-        print_json(summary)
+        print_json(
+            {"scenario": scenario.name, "controller": controller, "metrics": values, "files": files}
+        )
     else:
-        print(f"{scenario.name}  controller={summary['controller']}")
-        for key, value in summary["metrics"].items():  # type: ignore[attr-defined]
+        print(f"{scenario.name}  controller={controller}")
+        for key, value in values.items():
             print(f"  {key:32s} {value}")
         for f in files:
             log(f"wrote {f}")

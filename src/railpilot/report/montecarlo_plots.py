@@ -8,11 +8,11 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
+import matplotlib.pyplot as plt
+import numpy as np
 
-from railpilot.report.ep_plots import COLORS  # noqa: E402
-from railpilot.sim.batch import MonteCarloResult  # noqa: E402
+from railpilot.report.ep_plots import COLORS
+from railpilot.sim.batch import MonteCarloResult
 
 
 def stop_error_histogram(

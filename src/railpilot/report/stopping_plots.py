@@ -8,10 +8,10 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.pyplot as plt
 
-from railpilot.report.ep_plots import COLORS, _moving  # noqa: E402
-from railpilot.sim.result import SimResult  # noqa: E402
+from railpilot.report.ep_plots import COLORS, _moving
+from railpilot.sim.result import SimResult
 
 
 def tracking(results: Mapping[str, SimResult], path: Path) -> Path:

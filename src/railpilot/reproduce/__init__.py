@@ -14,6 +14,7 @@ from types import ModuleType
 #: ``railpilot reproduce NAME`` -> module implementing it
 REPRODUCTIONS: dict[str, str] = {
     "smarc-ep": "railpilot.reproduce.smarc_ep",
+    "qsmc-stop": "railpilot.reproduce.qsmc_stop",
     "eddy-torque": "railpilot.reproduce.eddy_torque",
 }
 

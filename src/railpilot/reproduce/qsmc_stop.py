@@ -146,8 +146,7 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
     realistic = realistic_scenario()
     real_spec = realistic_spec(runs)
     real_results = {
-        name: run_montecarlo(realistic, name, real_spec, progress=False)
-        for name in CONTROLLERS
+        name: run_montecarlo(realistic, name, real_spec, progress=False) for name in CONTROLLERS
     }
     wall_s = time.perf_counter() - started
 

@@ -19,6 +19,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from railpilot.brakes.ep_blend import EPBrake
 from railpilot.reproduce.base import Reproduction, Table
 from railpilot.scenario.model import ATOModel, Scenario
 from railpilot.sim.disturbance import Disturbance, Region
@@ -90,6 +91,7 @@ def _sweep(base: Scenario) -> list[dict[str, Any]]:
                 replace(base, train=train, ato=replace(base.ato, mass_kg=base.train.mass_kg)),
             )
         )
+    assert isinstance(base.brake, EPBrake)  # paper 000 is an EP-brake scenario
     cases.append(
         (
             "one motor car's electric brake cut at 20 s",
@@ -123,7 +125,7 @@ def run(out_dir: Path) -> Reproduction:
     nominal_runs = {name: simulate(nominal, name) for name in CONTROLLERS}
     sweep = _sweep(paper)
     wall_s = time.perf_counter() - started
-    changeover = kmh_to_mps(paper.brake.changeover_kmh)
+    changeover = kmh_to_mps(paper.changeover_kmh)
     limit = paper.train.max_service_decel_mps2
     figures = [
         ep_plots.speed_distance(paper_runs, out_dir / "smarc_ep_speed_distance.png", changeover),

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 from collections.abc import Iterator
 from dataclasses import replace
 from typing import Any
@@ -30,11 +31,11 @@ from railpilot.reproduce.smarc_ep import nominal_scenario, paper_scenario
 from railpilot.scenario.model import ControllerSpec, Scenario
 from railpilot.sim.run import ato_brake_model, simulate
 
-PID_GRID = {
+PID_GRID: dict[str, tuple[float, ...]] = {
     "tau_c_factor": (0.5, 0.75, 1.0, 1.5, 2.0),
     "position_factor": (0.0, 0.25, 0.5, 0.75, 1.0),
 }
-SMARC_GRID = {
+SMARC_GRID: dict[str, tuple[float, ...]] = {
     "tau_c_factor": (0.25, 0.5, 1.0),
     "alpha": (0.0, 1.0),
     "eta": (0.02, 0.05, 0.1),
@@ -105,7 +106,7 @@ def score(name: str, candidate: dict[str, float], scenarios: list[Scenario]) -> 
         s = replace(scenario, controller=ControllerSpec(name, {name: params}))
         m = simulate(s, name).metrics
         limit = scenario.train.max_service_decel_mps2
-        if not m["stop_error_m"] == m["stop_error_m"] or m["max_decel_mps2"] > limit:
+        if math.isnan(m["stop_error_m"]) or m["max_decel_mps2"] > limit:
             return float("inf"), float("inf")
         worst_stop = max(worst_stop, abs(m["stop_error_m"]))
         worst_rms = max(worst_rms, m["rms_speed_error_mps"])

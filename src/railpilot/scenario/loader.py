@@ -39,7 +39,7 @@ import numpy as np
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.errors import ConfigError, ScenarioError
-from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
+from railpilot.scenario.model import CONTROLLERS, ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.disturbance import Disturbance, Region
 from railpilot.sim.realism import Realism
@@ -399,6 +399,17 @@ def _realism(t: _Table) -> Realism:
     return realism
 
 
+def _distribution_maker(key: str, item: _Table) -> Callable[[], Distribution]:
+    """Read one ``[montecarlo.vary]`` entry; the Distribution checks it when built."""
+    kind = item.string("dist", "uniform", ("uniform", "normal"))
+    if kind == "uniform":
+        low, high = item.number("min"), item.number("max")
+        return lambda: Distribution(key, "uniform", low, high)
+    low, high = item.number("min", -np.inf), item.number("max", np.inf)
+    mean, std = item.number("mean"), item.number("std")
+    return lambda: Distribution(key, "normal", low, high, mean=mean, std=std)
+
+
 def _montecarlo(t: _Table) -> MonteCarloSpec | None:
     if not t.data:
         return None
@@ -406,28 +417,8 @@ def _montecarlo(t: _Table) -> MonteCarloSpec | None:
     table = t.table("vary")
     for key in list(table.data):
         item = table.table(key)
-        kind = item.string("dist", "uniform", ("uniform", "normal"))
-        if kind == "uniform":
-            dist = _build(
-                "montecarlo.vary",
-                lambda item=item, key=key: Distribution(
-                    key, "uniform", item.number("min"), item.number("max")
-                ),
-            )
-        else:
-            dist = _build(
-                "montecarlo.vary",
-                lambda item=item, key=key: Distribution(
-                    key,
-                    "normal",
-                    item.number("min", -np.inf),
-                    item.number("max", np.inf),
-                    mean=item.number("mean"),
-                    std=item.number("std"),
-                ),
-            )
+        vary.append(_build("montecarlo.vary", _distribution_maker(key, item)))
         item.done()
-        vary.append(dist)
     table.done()
     spec = _build(
         "montecarlo",
@@ -457,9 +448,9 @@ def _ato(t: _Table) -> ATOModel:
 
 
 def _controller(t: _Table) -> ControllerSpec:
-    name = t.string("name", "smarc", ("pid", "smarc"))
+    name = t.string("name", "smarc", CONTROLLERS)
     params: dict[str, dict[str, Any]] = {}
-    for ctrl in ("pid", "smarc"):
+    for ctrl in CONTROLLERS:
         if t.has(ctrl):
             sub = t.raw(ctrl)
             if not isinstance(sub, Mapping):

@@ -20,7 +20,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import Any, TypeVar, cast
 
 import numpy as np
 from numba import njit, prange
@@ -28,11 +28,18 @@ from numba import njit, prange
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.errors import ConfigError
 from railpilot.scenario.model import ATOModel, Scenario
-from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, Distribution, MonteCarloSpec
+from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.sim import engine
 from railpilot.sim.run import KernelInputs, ato_brake_model, make_controller, metrics_dict
 from railpilot.sim.run import prepare as prepare_inputs
 from railpilot.units import kmh_to_mps, tonne_to_kg
+
+T = TypeVar("T")
+
+
+def _with(obj: T, **changes: Any) -> T:
+    """``dataclasses.replace`` for a field named at run time."""
+    return cast(T, replace(cast(Any, obj), **changes))
 
 
 def _scale_davis(s: Scenario, f: float) -> Scenario:
@@ -58,7 +65,7 @@ def _brake_field(name: str) -> Callable[[Scenario, float], Scenario]:
                 name,
                 f"a parameter of this scenario's brake ({type(s.brake).__name__})",
             )
-        return replace(s, brake=replace(s.brake, **{name: value}))
+        return replace(s, brake=_with(s.brake, **{name: value}))
 
     return apply
 
@@ -66,7 +73,7 @@ def _brake_field(name: str) -> Callable[[Scenario, float], Scenario]:
 def _set(
     field_name: str, convert: Callable[[float], float] = float
 ) -> Callable[[Scenario, float], Scenario]:
-    return lambda s, v: replace(s, **{field_name: convert(v)})
+    return lambda s, v: _with(s, **{field_name: convert(v)})
 
 
 #: How each parameter a sweep can vary (scenario/montecarlo.py lists them) changes
@@ -306,7 +313,7 @@ class MonteCarloResult:
             return float(np.percentile(finite, q)) if finite.size else None
 
         return {
-            "runs": int(len(err)),
+            "runs": len(err),
             "not_stopped": int((~stopped).sum()),
             "mean_stop_error_m": float(np.mean(err[stopped])) if finite.size else None,
             "std_stop_error_m": float(np.std(err[stopped])) if finite.size else None,

@@ -239,8 +239,7 @@ def run_kernel(
                 # wants delivered one lead from now, so its predicted reference error
                 # sees a braking point coming (with ref_a[k] it starts one lead late)
                 u = (
-                    _qsmc(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas,
-                          ctrl_dt)
+                    _qsmc(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas, ctrl_dt)
                     + r_model
                 )
             u = min(max(u, ato[A_UMIN]), ato[A_UMAX])

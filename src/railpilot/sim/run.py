@@ -26,8 +26,8 @@ from railpilot.control.tuning import (
 )
 from railpilot.errors import ConfigError
 from railpilot.scenario.model import CONTROLLERS, Scenario
-from railpilot.sim.reference import BrakingCurve
 from railpilot.sim import engine
+from railpilot.sim.reference import BrakingCurve
 from railpilot.sim.result import CHANNELS, SimResult
 from railpilot.units import kmh_to_mps
 

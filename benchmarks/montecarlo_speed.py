@@ -1,0 +1,74 @@
+"""Benchmark: Monte Carlo runs of the paper-002 scenario with QSMC (10 ms plant step).
+
+Prints one JSON object with ``runs``, ``wall_s`` (after the one-off compilation,
+reported as ``compile_s``), ``runs_per_s`` and ``peak_rss_mb`` (the process's peak
+resident memory, which includes Python, NumPy and Numba themselves). Not a test: the
+goal -- 10,000 runs in under 10 s on 2 cores, memory under 1 GB -- is reported, never
+asserted. ``--scaling`` also times 1,000, 10,000 and 100,000 runs.
+
+Usage: python benchmarks/montecarlo_speed.py [--runs 10000] [--scaling]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import resource
+import time
+
+from railpilot.reproduce.qsmc_stop import paper_scenario, random_disturbance
+from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
+from railpilot.sim.batch import run_montecarlo
+
+
+def spec(runs: int) -> MonteCarloSpec:
+    """Paper 002's sigma range and the +/-2.3 % random disturbance, per-run seeds."""
+    return MonteCarloSpec(
+        runs=runs, seed=1, chunk=1000, vary=(Distribution("brake.delay_s", "uniform", 1.05, 1.35),)
+    )
+
+
+def timed(runs: int) -> dict[str, float]:
+    scenario = random_disturbance(paper_scenario())
+    started = time.perf_counter()
+    result = run_montecarlo(scenario, "qsmc", spec(runs), progress=False)
+    wall = time.perf_counter() - started
+    stats = result.stats()
+    return {
+        "runs": runs,
+        "wall_s": wall,
+        "runs_per_s": runs / wall,
+        "max_abs_stop_error_m": stats["max_abs_stop_error_m"],
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__)
+    parser.add_argument("--runs", type=int, default=10_000)
+    parser.add_argument(
+        "--scaling", action="store_true", help="also time 1,000 / 10,000 / 100,000 runs"
+    )
+    args = parser.parse_args()
+    started = time.perf_counter()
+    timed(10)  # compile (or load Numba's cache) once
+    compile_s = time.perf_counter() - started
+    main_run = timed(args.runs)
+    out: dict[str, object] = {
+        "benchmark": "montecarlo_speed",
+        "scenario": "paper002 (QSMC, 10 ms step, 40 s simulated, sigma 1.05-1.35 s)",
+        **main_run,
+        "compile_s": compile_s,
+        "goal_wall_s_for_10000": 10.0,
+        "goal_peak_rss_mb": 1024.0,
+    }
+    if args.scaling:
+        out["scaling"] = [timed(n) for n in (1_000, 10_000, 100_000)]
+    # ru_maxrss is in kilobytes on Linux
+    out["peak_rss_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+    out["python"] = platform.python_version()
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
