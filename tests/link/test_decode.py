@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from railpilot.link import Check, KeyStore, decode_stream, encode_body, encode_frame
+from railpilot.link.messages import StationStop, StationStops
 
 from .helpers import GROUND_ID, KEY_1, KEY_2, TRAIN_ID, running_info
 
@@ -76,3 +77,14 @@ def test_expected_addresses_are_checked_when_given() -> None:
 
 def test_pure_garbage_gives_no_reports() -> None:
     assert list(decode_stream(b"\x00\x01\x02 no frames here \x7e\x7e")) == []
+
+
+def test_list_count_disagreeing_with_the_body_is_a_length_failure() -> None:
+    # spec 5.4 #13: a list count that does not match the body length is a length check
+    stops = StationStops((StationStop(7, 1000.0, 30.0), StationStop(8, 2000.0, 45.0)))
+    body = bytearray(encode_body(stops))
+    body[0] += 1  # claim one stop more than the body carries
+    raw = encode_frame(stops.TYPE, GROUND_ID, TRAIN_ID, 1, 1_700_000_000_000_000, 0, bytes(body))
+    [report] = decode_stream(raw)
+    assert report.verdict(Check.LENGTH).ok is False  # type: ignore[union-attr]
+    assert report.message is None

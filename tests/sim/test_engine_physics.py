@@ -85,7 +85,7 @@ def constant_force_scenario(by):
         brake=brake,
         reference=constant_deceleration(19.8, 0.65, start_m=1000.0),
         disturbance=Disturbance(),
-        ato=ATOModel(mass_kg=1.2 * MASS, lead_s=0.0),
+        ato=ATOModel(mass_kg=1.2 * MASS, brake_delay_s=0.0, brake_lag_s=0.0),
         sim=SimSettings(dt_s=0.01, duration_s=40.0, control_period_s=0.01),
     )
 

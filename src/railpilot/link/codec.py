@@ -17,7 +17,9 @@ from .errors import BodyError, LengthError, MessageFieldError, TypeCheckError
 from .messages import (
     IDENT_LEN,
     MAX_DISPATCH_TEXT_BYTES,
+    MAX_EPOCH_S,
     MAX_LIST_ENTRIES,
+    MAX_OFFSET_S,
     DeregisterReason,
     DeregisterRequest,
     DeregisterResponse,
@@ -75,6 +77,21 @@ def _ms(value_s: float) -> int:
 
 def _us(value_s: float) -> int:
     return min(round(value_s * 1_000_000.0), _U64_MAX)
+
+
+MAX_EPOCH_US = round(MAX_EPOCH_S * 1e6)
+MAX_OFFSET_US = round(MAX_OFFSET_S * 1e6)
+
+
+def _seconds(value_us: int, name: str, limit_us: int = MAX_EPOCH_US) -> float:
+    """Wire microseconds to seconds, range-checked on the integer.
+
+    Checking after the conversion would let ``limit + 1`` us through: it rounds to
+    exactly the limit in floating point.
+    """
+    if abs(value_us) > limit_us:
+        raise MessageFieldError("time", name, value_us, f"|value| <= {limit_us} us")
+    return value_us / 1e6
 
 
 def _ident(text: str) -> bytes:
@@ -284,12 +301,23 @@ def _dec_dispatch(b: bytes) -> Message:
 
 def _dec_time_offset(b: bytes) -> Message:
     ground, onboard, offset = _TIME_OFFSET.unpack(b)
-    return TimeOffsetReport(ground / 1e6, onboard / 1e6, offset / 1e6)
+    return TimeOffsetReport(
+        _seconds(ground, "ground_time_s"),
+        _seconds(onboard, "onboard_time_s"),
+        _seconds(offset, "offset_s", MAX_OFFSET_US),
+    )
 
 
 def _dec_tsr_set(b: bytes) -> Message:
     session, start, end, limit, v_from, v_until = _TSR_SET.unpack(b)
-    return TsrSet(session, start / 100.0, end / 100.0, limit / 100.0, v_from / 1e6, v_until / 1e6)
+    return TsrSet(
+        session,
+        start / 100.0,
+        end / 100.0,
+        limit / 100.0,
+        _seconds(v_from, "valid_from_s"),
+        _seconds(v_until, "valid_until_s"),
+    )
 
 
 def _dec_planned_curve(b: bytes) -> Message:
@@ -325,7 +353,9 @@ _DECODERS: dict[MessageType, Callable[[bytes], Message]] = {
     MessageType.DEREGISTER_RESPONSE: lambda b: DeregisterResponse(
         _enum(DeregisterResult, b[0], "result")
     ),
-    MessageType.TIME_CHECK: lambda b: TimeCheck(_TIME_CHECK.unpack(b)[0] / 1e6),
+    MessageType.TIME_CHECK: lambda b: TimeCheck(
+        _seconds(_TIME_CHECK.unpack(b)[0], "ground_time_s")
+    ),
     MessageType.TIME_OFFSET_REPORT: _dec_time_offset,
     MessageType.STATION_STOPS: _dec_station_stops,
     MessageType.RUNNING_TIMES: _dec_running_times,

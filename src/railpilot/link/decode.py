@@ -136,7 +136,16 @@ def inspect_frame(
             message = decode_body(mtype, frame.body)
             verdicts.append(Verdict(Check.BODY, True))
         except FrameError as exc:
-            verdicts.append(Verdict(Check.BODY, False, exc.detail))
+            if exc.check is Check.LENGTH:
+                # a list count or text length that disagrees with the body is a length
+                # failure (spec 5.4 #13): it replaces the frame-length verdict
+                verdicts[:] = [
+                    Verdict(Check.LENGTH, False, exc.detail) if v.check is Check.LENGTH else v
+                    for v in verdicts
+                ]
+                verdicts.append(Verdict(Check.BODY, None, "not decoded: length failed"))
+            else:
+                verdicts.append(Verdict(Check.BODY, False, exc.detail))
     else:
         verdicts.append(Verdict(Check.BODY, None, "not decoded: type or length failed"))
     for check in (Check.SEQUENCE, Check.TIMESTAMP, Check.DELAY):

@@ -8,7 +8,7 @@
   with a random disturbance of -2.3 % to +2.3 % of the target acceleration;
 * ``realistic``: the same stop with the effects of a real train switched on
   (railpilot.sim.realism; values in docs/paper-002-qsmc.md) and the plant varied, run
-  through the same Monte Carlo for PID, SMARC and QSMC: where controllers really differ.
+  through the same Monte Carlo for PID and QSMC: where controllers really differ.
 """
 
 from __future__ import annotations
@@ -61,7 +61,7 @@ def paper_scenario(sigma_s: float = NOMINAL_SIGMA_S) -> Scenario:
         # the paper's disturbance acceleration between 100 m and 200 m (value lost):
         # 0.05 m/s^2 pushing the train on, as a 5 per mille down-grade would
         disturbance=Disturbance(regions=(Region(100.0, 200.0, 0.05 * train.effective_mass_kg),)),
-        ato=ATOModel(davis=(0.0, 0.0, 0.0), lead_s=NOMINAL_SIGMA_S + TAU_S),
+        ato=ATOModel(davis=(0.0, 0.0, 0.0), brake_delay_s=NOMINAL_SIGMA_S, brake_lag_s=TAU_S),
         controller=ControllerSpec("qsmc"),
         sim=SimSettings(dt_s=0.01, duration_s=40.0),
     )

@@ -61,7 +61,9 @@ def paper_scenario() -> Scenario:
         base,
         name="paper000-smarc-ep",
         train=plant,
-        ato=ATOModel(davis=(t.davis_a0, t.davis_a1, t.davis_a2), lead_s=0.75),
+        ato=ATOModel(
+            davis=(t.davis_a0, t.davis_a1, t.davis_a2), brake_delay_s=0.24, brake_lag_s=0.51
+        ),
         disturbance=Disturbance(
             regions=(Region(start + 100.0, start + 250.0, 25e3),),
             random_std_n=3e3,

@@ -21,7 +21,7 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              coast_s, ease_out
     [disturbance]  constant_kn, random_std_kn, random_hold_s, seed,
              regions = [{start_km, end_km, force_kn}]
-    [ato]    mass_t, davis = [a0, a1, a2], lead_s
+    [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s
     [controller]  name = "pid" | "smarc"; [controller.pid] / [controller.smarc] params
     [sim]    dt_s, duration_s, control_period_s, record_every
 """
@@ -345,7 +345,9 @@ def _disturbance(t: _Table, effective_mass_kg: float) -> Disturbance:
     for item in t.tables("regions"):
         if item.has("accel_mps2") == item.has("force_kn"):
             raise ScenarioError(
-                item.key("force_kn"), None, "exactly one of force_kn or accel_mps2 in each region"
+                item.key("force_kn"),
+                {k: item.data.get(k) for k in ("force_kn", "accel_mps2")},
+                "exactly one of force_kn or accel_mps2 in each region",
             )
         force = (
             kn_to_n(item.number("force_kn"))
@@ -440,7 +442,8 @@ def _ato(t: _Table) -> ATOModel:
         lambda: ATOModel(
             mass_kg=tonne_to_kg(mass_t) if mass_t is not None else None,
             davis=t.numbers("davis", 3),  # type: ignore[arg-type]
-            lead_s=t.optional_number("lead_s"),
+            brake_delay_s=t.optional_number("brake_delay_s"),
+            brake_lag_s=t.optional_number("brake_lag_s"),
         ),
     )
     t.done()

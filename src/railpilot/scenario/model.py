@@ -31,20 +31,24 @@ class ATOModel:
     davis
         The ATO's resistance model ``(a0, a1, a2)`` [N/kN], v in km/h, used as a
         feed-forward; None = the true coefficients.
-    lead_s
-        How far ahead [s] the reference acceleration is fed forward: the ATO's model
-        of the brake's delay plus time constant. None = the true ``delay + air lag``.
+    brake_delay_s, brake_lag_s
+        The ATO's model of the brake's delay and time constant [s] (the air path of an
+        EP brake): the tuning rules use them and the reference acceleration is fed
+        forward by their sum. None = the plant's true value.
     """
 
     mass_kg: float | None = None
     davis: tuple[float, float, float] | None = None
-    lead_s: float | None = None
+    brake_delay_s: float | None = None
+    brake_lag_s: float | None = None
 
     def __post_init__(self) -> None:
         if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
             raise ConfigError("ato.mass_kg", self.mass_kg, "a finite mass > 0")
-        if self.lead_s is not None and not (np.isfinite(self.lead_s) and self.lead_s >= 0):
-            raise ConfigError("ato.lead_s", self.lead_s, "a finite number >= 0 [s]")
+        for name in ("brake_delay_s", "brake_lag_s"):
+            value = getattr(self, name)
+            if value is not None and not (np.isfinite(value) and value >= 0):
+                raise ConfigError(f"ato.{name}", value, "a finite number >= 0 [s]")
         if self.davis is not None and not all(np.isfinite(c) and c >= 0 for c in self.davis):
             raise ConfigError("ato.davis", self.davis, "three finite numbers >= 0")
 

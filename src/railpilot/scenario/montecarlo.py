@@ -19,6 +19,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import zlib
+
 import numpy as np
 
 from railpilot.errors import ConfigError
@@ -58,9 +60,17 @@ class Distribution:
             raise ConfigError(where, self.key, f"one of {', '.join(sorted(VARIABLE_PARAMETERS))}")
         if self.kind not in ("uniform", "normal"):
             raise ConfigError(f"{where}.dist", self.kind, "'uniform' or 'normal'")
-        if not (np.isfinite(self.low) and np.isfinite(self.high) and self.low <= self.high):
+        finite_needed = self.kind == "uniform"
+        if (
+            np.isnan(self.low)
+            or np.isnan(self.high)
+            or self.low > self.high
+            or (finite_needed and not (np.isfinite(self.low) and np.isfinite(self.high)))
+        ):
             raise ConfigError(
-                f"{where}.min", (self.low, self.high), "finite bounds with min <= max"
+                f"{where}.min",
+                (self.low, self.high),
+                "min <= max (both finite for a uniform distribution)",
             )
         lowest = VARIABLE_PARAMETERS[self.key]
         if self.low < lowest:
@@ -100,8 +110,17 @@ class MonteCarloSpec:
             raise ConfigError("montecarlo.chunk", self.chunk, "an integer >= 1")
 
     def samples(self) -> tuple[dict[str, np.ndarray], np.ndarray]:
-        """Every run's sampled values and seed, from the master seed alone."""
-        rng = np.random.default_rng([self.seed, 0])
-        values = {d.key: d.sample(rng, self.runs) for d in self.vary}
+        """Every run's sampled values and seed, from the master seed alone.
+
+        Each parameter draws from its own stream (keyed by its name), so run ``i``'s
+        values depend on the master seed and ``i`` only: not on the number of runs,
+        nor on which other parameters vary or in what order.
+        """
+        values = {
+            d.key: d.sample(
+                np.random.default_rng([self.seed, 2, zlib.crc32(d.key.encode())]), self.runs
+            )
+            for d in self.vary
+        }
         seeds = np.random.default_rng([self.seed, 1]).integers(0, 2**62, self.runs)
         return values, seeds

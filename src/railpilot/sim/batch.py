@@ -116,10 +116,13 @@ def freeze_ato(scenario: Scenario) -> Scenario:
     """
     t = scenario.train
     davis = scenario.ato.davis or (t.davis_a0, t.davis_a1, t.davis_a2)
-    lead = (
-        scenario.ato.lead_s if scenario.ato.lead_s is not None else sum(ato_brake_model(scenario))
+    delay, lag = ato_brake_model(scenario)
+    return replace(
+        scenario,
+        ato=ATOModel(
+            mass_kg=scenario.ato.mass_kg, davis=davis, brake_delay_s=delay, brake_lag_s=lag
+        ),
     )
-    return replace(scenario, ato=ATOModel(mass_kg=scenario.ato.mass_kg, davis=davis, lead_s=lead))
 
 
 def replay_scenario(scenario: Scenario, spec: MonteCarloSpec, run: int) -> Scenario:

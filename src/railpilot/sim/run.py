@@ -42,8 +42,8 @@ KINDS = {"pid": engine.KIND_PID, "smarc": engine.KIND_SMARC, "qsmc": engine.KIND
 def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     """Controller parameters by the documented tuning rule for this scenario's brake.
 
-    The ATO's model of the brake (``ato.lead_s`` split as in the plant, else the
-    true delay and lag) goes into the tuning rules of control/tuning.py.
+    The ATO's model of the brake (``ato.brake_delay_s`` and ``ato.brake_lag_s``, else
+    the true delay and lag) goes into the tuning rules of control/tuning.py.
     """
     delay, lag = ato_brake_model(scenario)
     # tau_c and the remaining free parameters: the winners of the grid search in
@@ -72,15 +72,14 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
 def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
     """The ATO's model of the brake's ``(delay, lag)`` [s].
 
-    Without ``ato.lead_s`` the true values; with it, the lead split in the plant's
-    proportion (the ATO knows only the total).
+    ``ato.brake_delay_s`` and ``ato.brake_lag_s``; each one not given is the plant's.
     """
     delay, lag = scenario.brake_lead_s
-    if scenario.ato.lead_s is None:
-        return delay, lag
-    total = delay + lag
-    share = delay / total if total > 0 else 0.5
-    return scenario.ato.lead_s * share, scenario.ato.lead_s * (1 - share)
+    ato = scenario.ato
+    return (
+        delay if ato.brake_delay_s is None else ato.brake_delay_s,
+        lag if ato.brake_lag_s is None else ato.brake_lag_s,
+    )
 
 
 def _parameter_names(cls: type) -> list[str]:
