@@ -17,9 +17,8 @@ Parameters a sweep can vary (values in the scenario file's units)::
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 import zlib
+from dataclasses import dataclass
 
 import numpy as np
 
