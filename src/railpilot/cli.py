@@ -24,6 +24,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.reproduce",
     "railpilot.commands.montecarlo",
     "railpilot.commands.demo",
+    "railpilot.commands.link",
 )
 
 

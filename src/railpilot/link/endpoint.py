@@ -139,14 +139,15 @@ class Endpoint:
         """Latest time by which :meth:`tick` should be called next (``None``: no timer)."""
         if not self._connected:
             return self._extra_deadline_s()
-        times = [self._next_heartbeat_s]
+        # no heartbeat is sent before the peer is known (tick() could not act on it)
+        times = [self._next_heartbeat_s] if self._channel.peer_id is not None else []
         times += [
             s.deadline_s() for s in self._supervisors.values() if s.active and not s.timed_out
         ]
         extra = self._extra_deadline_s()
         if extra is not None:
             times.append(extra)
-        return min(times)
+        return min(times) if times else None
 
     def held_value(self, message_type: MessageType) -> HeldValue | None:
         """Last accepted value of a supervised periodic message, with its validity."""

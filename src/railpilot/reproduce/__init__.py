@@ -16,6 +16,7 @@ REPRODUCTIONS: dict[str, str] = {
     "smarc-ep": "railpilot.reproduce.smarc_ep",
     "qsmc-stop": "railpilot.reproduce.qsmc_stop",
     "eddy-torque": "railpilot.reproduce.eddy_torque",
+    "link-demo": "railpilot.reproduce.link_demo",
 }
 
 

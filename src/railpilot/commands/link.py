@@ -1,0 +1,682 @@
+"""``railpilot ground ...``, ``railpilot onboard ...`` and ``railpilot link ...``.
+
+Parse, call :mod:`railpilot.net` / :mod:`railpilot.link`, print. Keys come only from a key
+file with owner-only permissions (``--keys FILE``); they are never accepted on the command
+line and never printed or logged. ``--json`` prints exactly one JSON object on stdout; logs
+go to stderr.
+"""
+
+from __future__ import annotations
+
+import argparse
+import asyncio
+import contextlib
+import logging
+import signal
+import sys
+from pathlib import Path
+from typing import Any
+
+from railpilot.commands._common import log, print_json
+from railpilot.link.errors import LinkConfigError
+
+DEFAULT_PORT = 7400
+DEFAULT_ADMIN_PORT = 7401
+
+
+# --- argument helpers -------------------------------------------------------------------------
+
+
+def _host_port(field: str, text: str) -> tuple[str, int]:
+    host, sep, port = text.rpartition(":")
+    if not sep or not host or not port.isdigit() or not 0 <= int(port) <= 65535:
+        raise LinkConfigError(field, text, "HOST:PORT with a port in [0, 65535]")
+    return host.strip("[]"), int(port)
+
+
+def _loopback(field: str, host: str) -> None:
+    from railpilot.net.admin import LOOPBACK
+
+    if host not in LOOPBACK:
+        raise LinkConfigError(field, host, "a loopback address (127.0.0.1): test tool")
+
+
+def _probability(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a number in [0, 1]") from None
+    if not 0.0 <= value <= 1.0:
+        raise argparse.ArgumentTypeError(f"{value} is not in [0, 1]")
+    return value
+
+
+def _keys(path: Path | None, no_auth: bool) -> Any:
+    """Load the key file (refused when group/other may read it); None with --no-auth."""
+    from railpilot.link import load_key_file
+
+    if path is None:
+        if not no_auth:
+            raise LinkConfigError(
+                "--keys", None, "a key file (chmod 600), or --no-auth for a test link"
+            )
+        return None
+    return load_key_file(path)
+
+
+def _log_level(args: argparse.Namespace) -> None:
+    from railpilot.net.logfmt import setup_logging
+
+    setup_logging(getattr(logging, args.log_level.upper()))
+
+
+def _add_log_level(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--log-level",
+        default="info",
+        choices=["debug", "info", "warning", "error"],
+        help="stderr log level [info]",
+    )
+
+
+def _add_admin(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--admin-port",
+        type=int,
+        default=DEFAULT_ADMIN_PORT,
+        help=f"admin port of the running server on 127.0.0.1 [{DEFAULT_ADMIN_PORT}]",
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+
+
+def _add_trains(p: argparse.ArgumentParser) -> None:
+    p.add_argument(
+        "--train",
+        action="append",
+        required=True,
+        metavar="ID|all",
+        help="train id (repeatable), or 'all' = every train that has registered",
+    )
+
+
+def _train_list(values: list[str]) -> list[int] | str:
+    if values == ["all"]:
+        return "all"
+    out = []
+    for v in values:
+        if not v.isdigit() or not 1 <= int(v) <= 0xFFFF_FFFF:
+            raise LinkConfigError("--train", v, "'all' or a train id in [1, 4294967295]")
+        out.append(int(v))
+    return out
+
+
+def _run_async(main: Any) -> Any:
+    """Run a coroutine; SIGINT/SIGTERM set the stop event it was given."""
+    return asyncio.run(main)
+
+
+async def _stop_on_signals() -> asyncio.Event:
+    stop = asyncio.Event()
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        with contextlib.suppress(NotImplementedError, RuntimeError):
+            loop.add_signal_handler(sig, stop.set)
+    return stop
+
+
+# --- registration -------------------------------------------------------------------------------
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    _register_ground(subparsers)
+    _register_onboard(subparsers)
+    _register_link(subparsers)
+
+
+def _register_ground(subparsers: argparse._SubParsersAction) -> None:
+    ground = subparsers.add_parser(
+        "ground",
+        help="ground front server of the train-ground link (paper 001)",
+        description="Run the ground front server, or talk to a running one over its admin "
+        "port (line-delimited JSON on 127.0.0.1, see docs/link-operations.md).",
+    )
+    sub = ground.add_subparsers(dest="ground_command", metavar="ACTION")
+    sub.required = True
+
+    p = sub.add_parser(
+        "serve",
+        help="run the ground front server",
+        description="Accept many trains, record registrations and running info, deliver "
+        "TSRs/target points/dispatch commands with resend until acknowledged. Stops "
+        "gracefully on SIGINT/SIGTERM.",
+    )
+    p.add_argument("--host", default="127.0.0.1", help="listen address [127.0.0.1]")
+    p.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"link port [{DEFAULT_PORT}]")
+    p.add_argument("--keys", type=Path, help="key file (TOML, chmod 600) with per-train keys")
+    p.add_argument("--no-auth", action="store_true", help="unauthenticated link (tests only)")
+    p.add_argument("--ground-id", type=int, default=1, help="ground device id [1]")
+    p.add_argument(
+        "--admin-port",
+        type=int,
+        default=DEFAULT_ADMIN_PORT,
+        help=f"admin port on 127.0.0.1, -1 = none [{DEFAULT_ADMIN_PORT}]",
+    )
+    p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
+    _add_log_level(p)
+    p.set_defaults(func=_ground_serve)
+
+    tsr = sub.add_parser(
+        "tsr",
+        help="set or cancel a temporary speed restriction",
+        description="Set or cancel a TSR on a running server (delivered with resend until "
+        "acknowledged; the train extends it by its own length).",
+    )
+    tsr_sub = tsr.add_subparsers(dest="tsr_command", metavar="ACTION")
+    tsr_sub.required = True
+    p = tsr_sub.add_parser("set", help="set a TSR", description="Set a TSR on one or more trains.")
+    _add_trains(p)
+    p.add_argument("--session", type=int, required=True, help="TSR session number (1..2^32-1)")
+    p.add_argument("--start-km", type=float, required=True, help="start km post [km]")
+    p.add_argument("--end-km", type=float, required=True, help="end km post [km]")
+    p.add_argument("--limit-kmh", type=float, required=True, help="speed limit [km/h]")
+    p.add_argument("--valid-s", type=float, required=True, help="validity from now [s]")
+    _add_admin(p)
+    p.set_defaults(func=_ground_admin, op="tsr_set")
+    p = tsr_sub.add_parser(
+        "cancel", help="cancel a TSR", description="Cancel a TSR session on one or more trains."
+    )
+    _add_trains(p)
+    p.add_argument("--session", type=int, required=True, help="TSR session number")
+    _add_admin(p)
+    p.set_defaults(func=_ground_admin, op="tsr_cancel")
+
+    p = sub.add_parser(
+        "target",
+        help="send a target point (red signal ahead)",
+        description="Send a target point; resent until acknowledged.",
+    )
+    _add_trains(p)
+    p.add_argument("--target-id", type=int, required=True, help="target id")
+    p.add_argument("--km", type=float, required=True, help="red signal km post [km]")
+    p.add_argument(
+        "--reason",
+        default="train-ahead",
+        choices=["train-ahead", "switch-indication-lost", "section-fault", "other"],
+        help="why [train-ahead]",
+    )
+    _add_admin(p)
+    p.set_defaults(func=_ground_admin, op="target")
+
+    p = sub.add_parser(
+        "dispatch",
+        help="send a dispatch command",
+        description="Send a dispatch command (text); resent until acknowledged.",
+    )
+    _add_trains(p)
+    p.add_argument("--command", type=int, required=True, help="command number (used once)")
+    p.add_argument("--text", required=True, help="command text (UTF-8, <= 1000 bytes)")
+    _add_admin(p)
+    p.set_defaults(func=_ground_admin, op="dispatch")
+
+    p = sub.add_parser(
+        "status",
+        help="show trains, running info and deliveries",
+        description="Show what a running server knows.",
+    )
+    _add_admin(p)
+    p.set_defaults(func=_ground_admin, op="status", train=None)
+
+
+def _register_onboard(subparsers: argparse._SubParsersAction) -> None:
+    onboard = subparsers.add_parser(
+        "onboard",
+        help="onboard endpoint of the train-ground link (paper 001)",
+        description="Run one train's onboard endpoint.",
+    )
+    sub = onboard.add_subparsers(dest="onboard_command", metavar="ACTION")
+    sub.required = True
+    p = sub.add_parser(
+        "run",
+        help="connect, register and report a simulated run",
+        description="Connect to the ground, register, send running info every cycle from a "
+        "simulated trajectory, answer time checks, apply TSRs (extended by the train length) "
+        "and target points; reconnect with backoff and jitter; on SIGINT/SIGTERM deregister "
+        "and stop.",
+    )
+    p.add_argument("--server", required=True, help="ground HOST:PORT")
+    p.add_argument("--train-id", type=int, required=True, help="train (device) id")
+    p.add_argument("--keys", type=Path, help="key file (TOML, chmod 600) with this train's key")
+    p.add_argument("--no-auth", action="store_true", help="unauthenticated link (tests only)")
+    p.add_argument("--ground-id", type=int, default=1, help="ground device id [1]")
+    p.add_argument("--length-m", type=float, default=2600.0, help="train length [m] [2600]")
+    p.add_argument("--train-number", default="K1234", help="train number [K1234]")
+    p.add_argument("--loco-number", default="SS4-0001", help="locomotive number [SS4-0001]")
+    p.add_argument("--driver-id", type=int, default=1, help="driver id [1]")
+    p.add_argument("--start-km", type=float, default=100.0, help="start km post [100]")
+    p.add_argument("--speed-kmh", type=float, default=72.0, help="initial speed [72 km/h]")
+    p.add_argument("--decel", type=float, default=0.0, help="braking [m/s^2], 0 = cruise")
+    p.add_argument("--direction", choices=["up", "down"], default="up", help="[up]")
+    p.add_argument("--seed", type=int, default=0, help="reconnect jitter seed [0]")
+    p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
+    p.add_argument("--json", action="store_true", help="print a JSON summary at the end")
+    _add_log_level(p)
+    p.set_defaults(func=_onboard_run)
+
+
+def _register_link(subparsers: argparse._SubParsersAction) -> None:
+    link = subparsers.add_parser(
+        "link",
+        help="link tools: decode, fault-injection proxy, load test",
+        description="Tools for the train-ground link (docs/protocol.md).",
+    )
+    sub = link.add_subparsers(dest="link_command", metavar="TOOL")
+    sub.required = True
+
+    p = sub.add_parser(
+        "decode",
+        help="decode frames from hex or raw bytes",
+        description="Decode every frame in FILE (or stdin) and show each check's verdict. "
+        "Input is hex (whitespace, ':' and '0x' ignored) or raw bytes; detected "
+        "automatically (a raw frame always holds 0x7E, which is no hex digit).",
+    )
+    p.add_argument("file", nargs="?", default="-", help="input file, '-' = stdin [-]")
+    p.add_argument("--keys", type=Path, help="key file (chmod 600) to verify MACs")
+    p.add_argument("--hex", action="store_true", help="input is hex (no auto-detection)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_link_decode)
+
+    p = sub.add_parser(
+        "proxy",
+        help="fault-injection proxy (loopback only)",
+        description="Forward a link through per-frame faults: drop, duplicate, reorder, "
+        "corrupt, delay, inject, split. Loopback only. Stops on SIGINT/SIGTERM or after "
+        "--seconds and prints what it did.",
+    )
+    p.add_argument("--listen", required=True, help="listen HOST:PORT (loopback)")
+    p.add_argument("--upstream", required=True, help="ground HOST:PORT (loopback)")
+    p.add_argument("--drop", type=_probability, default=0.0, help="frame drop probability")
+    p.add_argument("--duplicate", type=_probability, default=0.0, help="duplicate probability")
+    p.add_argument("--reorder", type=_probability, default=0.0, help="reorder probability")
+    p.add_argument("--corrupt", type=_probability, default=0.0, help="bit-flip probability")
+    p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay frames [ms]")
+    p.add_argument("--delay-p", type=_probability, default=1.0, help="share delayed [1]")
+    p.add_argument("--inject", metavar="FILE|HEX", help="wire bytes to insert once")
+    p.add_argument("--inject-after", type=int, default=3, help="insert after N frames [3]")
+    p.add_argument("--inject-direction", choices=["up", "down"], default="up", help="[up]")
+    p.add_argument("--split", action="store_true", help="write frames in random pieces")
+    p.add_argument(
+        "--faults-on", choices=["both", "up", "down"], default="both", help="directions [both]"
+    )
+    p.add_argument("--seed", type=int, default=0, help="random seed [0]")
+    p.add_argument("--seconds", type=float, help="stop after this many seconds")
+    p.add_argument("--json", action="store_true", help="print the counts as one JSON object")
+    _add_log_level(p)
+    p.set_defaults(func=_link_proxy)
+
+    p = sub.add_parser(
+        "loadtest",
+        help="N trains against one server on loopback",
+        description="Start a ground server and N onboard endpoints (in a child process) on "
+        "loopback, 1 Hz running info with HMAC, one TSR broadcast; report latency and losses.",
+    )
+    p.add_argument("--trains", type=int, default=100, help="number of trains [100]")
+    p.add_argument("--seconds", type=float, default=10.0, help="run time [10]")
+    p.add_argument("--seed", type=int, default=1, help="seed [1]")
+    p.add_argument("--client-processes", type=int, default=1, help="onboard processes [1]")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=_link_loadtest)
+
+
+# --- ground -----------------------------------------------------------------------------------
+
+
+def _ground_serve(args: argparse.Namespace) -> int:
+    from railpilot.link import GroundConfig
+    from railpilot.net.admin import AdminServer
+    from railpilot.net.server import GroundServer
+
+    keys = _keys(args.keys, args.no_auth)
+    config = GroundConfig(ground_id=args.ground_id, require_auth=keys is not None)
+    if not 0 <= args.port <= 65535:
+        raise LinkConfigError("--port", args.port, "0..65535")
+    if args.admin_port != -1 and not 0 <= args.admin_port <= 65535:
+        raise LinkConfigError("--admin-port", args.admin_port, "0..65535, or -1 = none")
+    _log_level(args)
+
+    async def main() -> None:
+        stop = await _stop_on_signals()
+        server = GroundServer(config, keys, host=args.host, port=args.port)
+        await server.start()
+        admin = None
+        if args.admin_port != -1:
+            admin = AdminServer(server, port=args.admin_port)
+            await admin.start()
+        if args.seconds is not None:
+            asyncio.get_running_loop().call_later(args.seconds, stop.set)
+        await stop.wait()
+        if admin is not None:
+            await admin.stop()
+        await server.stop()
+
+    _run_async(main())
+    return 0
+
+
+def _ground_admin(args: argparse.Namespace) -> int:
+    from railpilot.net.admin import AdminError, admin_request
+
+    request: dict[str, Any] = {"op": args.op}
+    if args.train is not None:
+        request["trains"] = _train_list(args.train)
+    if args.op == "tsr_set":
+        request.update(
+            session=args.session,
+            start_km=args.start_km,
+            end_km=args.end_km,
+            limit_kmh=args.limit_kmh,
+            valid_s=args.valid_s,
+        )
+    elif args.op == "tsr_cancel":
+        request.update(session=args.session)
+    elif args.op == "target":
+        request.update(target_id=args.target_id, km=args.km, reason=args.reason)
+    elif args.op == "dispatch":
+        request.update(command=args.command, text=args.text)
+    try:
+        response = asyncio.run(admin_request(request, port=args.admin_port))
+    except (OSError, TimeoutError, AdminError) as exc:
+        log(f"railpilot: error: cannot reach the admin port 127.0.0.1:{args.admin_port} ({exc})")
+        return 1
+    if args.json:
+        print_json(response)
+    elif not response.get("ok"):
+        pass
+    elif args.op == "status":
+        _print_status(response["result"])
+    else:
+        for train, outcome in response["result"]["trains"].items():
+            print(f"train {train}: {outcome}")
+    if not response.get("ok"):
+        log(f"railpilot: error: {response.get('error')}")
+        return 2
+    outcomes: dict[str, str] = {} if args.op == "status" else response["result"]["trains"]
+    refused = [t for t, r in outcomes.items() if r.startswith("error")]
+    if refused:
+        log(f"railpilot: error: refused for train(s) {', '.join(refused)}")
+        return 2
+    return 0
+
+
+def _print_status(status: dict[str, Any]) -> None:
+    print(
+        f"ground {status['ground_id']} on {status['host']}:{status['port']}: "
+        f"{status['connections']} connections, {status['registered']} registered trains"
+    )
+    for t in status["trains"]:
+        info = t["running_info"]
+        where = (
+            f"km {info['position_km']:.3f} {info['speed_kmh']:.1f} km/h {info['direction']} "
+            f"({info['age_s']:.1f} s ago{'' if info['valid'] else ', INVALID'})"
+            if info
+            else "no running info"
+        )
+        state = "registered" if t["registered"] else "not registered"
+        print(f"  train {t['train_id']} {t['train_number'] or ''}: {state}, {where}")
+        for session, s in t["tsrs"].items():
+            print(f"    TSR {session}: {s}")
+    c = status["counters"]
+    print(
+        f"frames received {c['frames_received']}, accepted {c['frames_accepted']}, "
+        f"rejected {c['rejected']}, lost {c['frames_lost']}, resends {c['resends']}"
+    )
+
+
+# --- onboard ----------------------------------------------------------------------------------
+
+
+def _onboard_run(args: argparse.Namespace) -> int:
+    from railpilot.link import OnboardConfig, TravelDirection
+    from railpilot.net.client import OnboardClient, Trajectory
+
+    host, port = _host_port("--server", args.server)
+    keys = _keys(args.keys, args.no_auth)
+    config = OnboardConfig(
+        train_id=args.train_id,
+        ground_id=args.ground_id,
+        train_number=args.train_number,
+        loco_number=args.loco_number,
+        driver_id=args.driver_id,
+        train_length_m=args.length_m,
+        require_auth=keys is not None,
+    )
+    if args.speed_kmh < 0 or args.speed_kmh > 360 or args.decel < 0:
+        raise LinkConfigError("--speed-kmh/--decel", (args.speed_kmh, args.decel), ">= 0")
+    trajectory = Trajectory(
+        start_m=args.start_km * 1000.0,
+        speed_mps=args.speed_kmh / 3.6,
+        decel_mps2=args.decel,
+        direction=TravelDirection.UP if args.direction == "up" else TravelDirection.DOWN,
+    )
+    _log_level(args)
+
+    async def main() -> OnboardClient:
+        stop = await _stop_on_signals()
+        client = OnboardClient(config, keys, host, port, trajectory=trajectory, seed=args.seed)
+        await client.run(stop, duration_s=args.seconds)
+        return client
+
+    client = _run_async(main())
+    summary = {
+        "train_id": args.train_id,
+        "connects": client.connects,
+        "registrations": client.registrations,
+        "active_tsrs": {
+            str(s): {
+                "start_km": t.start_m / 1000,
+                "end_km": t.end_m / 1000,
+                "zone_start_km": t.zone_start_m / 1000,
+                "zone_end_km": t.zone_end_m / 1000,
+                "limit_kmh": round(t.limit_mps * 3.6, 2),
+            }
+            for s, t in client.endpoint.active_tsrs.items()
+        },
+        "events": dict(client.events_seen),
+    }
+    if args.json:
+        print_json(summary)
+    return 0
+
+
+# --- link tools -------------------------------------------------------------------------------
+
+
+def _read_input(name: str) -> bytes:
+    if name == "-":
+        return sys.stdin.buffer.read()
+    try:
+        return Path(name).read_bytes()
+    except OSError as exc:
+        raise LinkConfigError("FILE", name, f"a readable file ({exc.strerror})") from None
+
+
+_HEX_CHARS = frozenset(b"0123456789abcdefABCDEF \t\r\n:xX")
+
+
+def parse_hex(data: bytes, field: str = "input") -> bytes:
+    """Hex text (whitespace, ':' and '0x' prefixes allowed, '#' comments) -> bytes."""
+    text = "\n".join(line.split("#", 1)[0] for line in data.decode("ascii").splitlines())
+    text = text.replace("0x", " ").replace("0X", " ").replace(":", " ")
+    digits = "".join(text.split())
+    try:
+        return bytes.fromhex(digits)
+    except ValueError:
+        raise LinkConfigError(field, digits[:40], "hex digits in pairs") from None
+
+
+def _looks_hex(data: bytes) -> bool:
+    body = b"\n".join(line.split(b"#", 1)[0] for line in data.splitlines())
+    return bool(body.strip()) and all(b in _HEX_CHARS for b in body)
+
+
+def _link_decode(args: argparse.Namespace) -> int:
+    from railpilot.link import decode_stream
+
+    keys = _keys(args.keys, True)  # refuse an unsafe key file before reading anything
+    data = _read_input(args.file)
+    if args.hex or _looks_hex(data):
+        try:
+            data = parse_hex(data)
+        except UnicodeDecodeError:
+            raise LinkConfigError("input", "<binary>", "hex text with --hex") from None
+    reports = [_report_dict(r) for r in decode_stream(data, keys)]
+    if args.json:
+        print_json(
+            {
+                "frames": reports,
+                "count": len(reports),
+                "ok": sum(1 for r in reports if r["ok"]),
+                "failed": sum(1 for r in reports if not r["ok"]),
+                "bytes": len(data),
+            }
+        )
+        return 0
+    for i, r in enumerate(reports, 1):
+        h = r["header"]
+        if h is None:
+            print(f"frame {i}: not a frame")
+        else:
+            print(
+                f"frame {i}: {h['message_type_name']} {h['source_id']} -> {h['destination_id']} "
+                f"seq {h['sequence']} ts {h['timestamp_us']} echo {h['echo_timestamp_us']} "
+                f"key {h['key_id']}: {'OK' if r['ok'] else 'FAILED'}"
+            )
+        for v in r["verdicts"]:
+            mark = {True: "ok  ", False: "FAIL", None: "skip"}[v["ok"]]
+            print(f"  {mark} {v['check']:<11} {v['detail']}")
+        if r["message"] is not None:
+            print(f"  message {r['message']['type']}: {r['message']['fields']}")
+    if not reports:
+        print("no frames found")
+    return 0
+
+
+def _report_dict(report: Any) -> dict[str, Any]:
+    from dataclasses import fields
+
+    from railpilot.link import MessageType
+
+    frame = report.frame
+    header = None
+    if frame is not None:
+        try:
+            name = MessageType(frame.message_type).name
+        except ValueError:
+            name = f"UNKNOWN_0x{frame.message_type:02x}"
+        header = {
+            "message_type": frame.message_type,
+            "message_type_name": name,
+            "source_id": frame.source_id,
+            "destination_id": frame.destination_id,
+            "sequence": frame.sequence,
+            "timestamp_us": frame.timestamp_us,
+            "echo_timestamp_us": frame.echo_timestamp_us,
+            "key_id": frame.key_id,
+            "mac": frame.mac.hex() if frame.mac is not None else None,
+            "crc": f"{frame.crc:08x}",
+            "body": frame.body.hex(),
+        }
+    message = None
+    if report.message is not None:
+        m = report.message
+        message = {
+            "type": type(m).__name__,
+            "fields": {f.name: _jsonable(getattr(m, f.name)) for f in fields(m)},
+        }
+    return {
+        "ok": report.ok,
+        "unstuffed": report.raw.hex() if report.raw is not None else None,
+        "header": header,
+        "message": message,
+        "verdicts": [
+            {"check": v.check.value, "ok": v.ok, "detail": v.detail} for v in report.verdicts
+        ],
+    }
+
+
+def _jsonable(value: Any) -> Any:
+    from dataclasses import asdict, is_dataclass
+
+    if hasattr(value, "name") and hasattr(value, "value"):  # enums
+        return value.name
+    if isinstance(value, tuple):
+        return [_jsonable(v) for v in value]
+    if is_dataclass(value) and not isinstance(value, type):
+        return {k: _jsonable(v) for k, v in asdict(value).items()}
+    return value
+
+
+def _link_proxy(args: argparse.Namespace) -> int:
+    from railpilot.net.proxy import FaultProxy, ProxyOptions
+
+    lhost, lport = _host_port("--listen", args.listen)
+    uhost, uport = _host_port("--upstream", args.upstream)
+    _loopback("--listen", lhost)
+    _loopback("--upstream", uhost)
+    inject = b""
+    if args.inject:
+        path = Path(args.inject)
+        raw = path.read_bytes() if path.is_file() else args.inject.encode("ascii", "replace")
+        inject = parse_hex(raw, "--inject") if _looks_hex(raw) else raw
+    directions = ("up", "down") if args.faults_on == "both" else (args.faults_on,)
+    options = ProxyOptions(
+        drop=args.drop,
+        duplicate=args.duplicate,
+        reorder=args.reorder,
+        corrupt=args.corrupt,
+        delay_ms=args.delay,
+        delay_p=args.delay_p,
+        inject=inject,
+        inject_after=args.inject_after,
+        inject_direction=args.inject_direction,
+        split=args.split,
+        directions=directions,  # type: ignore[arg-type]
+        seed=args.seed,
+    )
+    _log_level(args)
+
+    async def main() -> dict[str, Any]:
+        stop = await _stop_on_signals()
+        proxy = FaultProxy(uhost, uport, options, host=lhost, port=lport)
+        await proxy.start()
+        if args.seconds is not None:
+            asyncio.get_running_loop().call_later(args.seconds, stop.set)
+        await stop.wait()
+        await proxy.stop()
+        return proxy.report()
+
+    report = _run_async(main())
+    if args.json:
+        print_json(report)
+    else:
+        for direction in ("up", "down"):
+            print(f"{direction}: {report[direction]}")
+    return 0
+
+
+def _link_loadtest(args: argparse.Namespace) -> int:
+    from railpilot.net.loadtest import LoadtestOptions, run_loadtest
+
+    options = LoadtestOptions(
+        trains=args.trains,
+        seconds=args.seconds,
+        seed=args.seed,
+        client_processes=args.client_processes,
+    )
+    log(f"load test: {options.trains} trains for {options.seconds} s on 127.0.0.1 ...")
+    report = run_loadtest(options)
+    if args.json:
+        print_json(report)
+    else:
+        for key, value in report.items():
+            print(f"{key}: {value}")
+    return 0

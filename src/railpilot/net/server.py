@@ -1,0 +1,553 @@
+"""The ground front server: an asyncio TCP server around one GroundEndpoint per connection.
+
+Thin adapter (DESIGN habit 2): each accepted connection gets a
+:class:`~railpilot.link.GroundEndpoint`; all of them share ONE ``records`` mapping
+(train id -> :class:`~railpilot.link.TrainRecord`) owned by this server, so pending TSRs,
+dispatch commands and replay protection survive reconnects. One
+:class:`~railpilot.net.timers.TickScheduler` ticks every connection at its deadline.
+
+What the server adds on top of the core:
+
+* the current connection per registered train (a train that registers on a new connection
+  while an old one is still open gets the old one closed: the old one is a half-dead link
+  the train has already given up on);
+* a :class:`TrainView` per train: registrations, the latest running info and when it came;
+* deliveries for trains that are offline go into their record and leave on the next
+  registration (the core re-sends everything pending then);
+* key=value logging of every registration, acknowledgement, rejection and failure;
+* graceful shutdown: stop listening, close every connection, stop the timer.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import logging
+import socket
+import time
+from collections import Counter
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass, field
+from typing import Any
+
+from railpilot.link import (
+    DispatchAcknowledged,
+    DispatchCommand,
+    Event,
+    FrameRejected,
+    GroundConfig,
+    GroundEndpoint,
+    KeyStore,
+    LinkCounters,
+    LinkError,
+    LinkFailed,
+    MessageReceived,
+    PeriodicTimedOut,
+    RunningInfo,
+    SequenceGap,
+    TargetPoint,
+    TargetPointAcknowledged,
+    TimeOffsetReport,
+    TrainDeregistered,
+    TrainRecord,
+    TrainRegistered,
+    TsrAcknowledged,
+    TsrCancelAcknowledged,
+    TsrRefusedByTrain,
+    TsrSet,
+)
+
+from .logfmt import kv
+from .timers import TickScheduler
+
+log = logging.getLogger("railpilot.net.server")
+
+#: ``listener(train_id or None, event, now_s)``: sees every event of every connection.
+EventListener = Callable[[int | None, Event, float], None]
+
+_COUNTER_FIELDS = (
+    "frames_sent",
+    "frames_received",
+    "frames_accepted",
+    "sequence_gaps",
+    "frames_lost",
+    "repeats",
+    "reorders",
+    "superseded",
+    "timeouts",
+    "resends",
+    "link_failures",
+    "bytes_discarded",
+)
+
+
+def counters_dict(counters: Iterable[LinkCounters]) -> dict[str, Any]:
+    """Sum of endpoint counters as a JSON-ready dict (``rejected`` per check)."""
+    total: dict[str, Any] = dict.fromkeys(_COUNTER_FIELDS, 0)
+    rejected: Counter[str] = Counter()
+    for c in counters:
+        for name in _COUNTER_FIELDS:
+            total[name] += getattr(c, name)
+        rejected.update({check.value: n for check, n in c.rejected.items()})
+    total["rejected"] = dict(sorted(rejected.items()))
+    return total
+
+
+@dataclass
+class TrainView:
+    """What the server shows about one train besides its :class:`TrainRecord`."""
+
+    train_id: int
+    registrations: int = 0
+    registered_at_s: float | None = None
+    peer: str = ""
+    running_info: RunningInfo | None = None
+    running_info_at_s: float | None = None
+    running_info_count: int = 0
+    acks: Counter[str] = field(default_factory=Counter)
+
+
+class GroundConnection(asyncio.Protocol):
+    """One accepted TCP connection: feeds the endpoint, writes its output, routes events."""
+
+    def __init__(self, server: GroundServer) -> None:
+        self.server = server
+        self.endpoint = GroundEndpoint(server.config, server.keys, server.records)
+        self.transport: asyncio.Transport | None = None
+        self.peer = "?"
+        self.scheduled_s: float | None = None
+        self._lost = False
+
+    # --- asyncio.Protocol -------------------------------------------------------------------
+
+    def connection_made(self, transport: asyncio.BaseTransport) -> None:
+        assert isinstance(transport, asyncio.Transport)
+        self.transport = transport
+        sock = transport.get_extra_info("socket")
+        if sock is not None and sock.family in (socket.AF_INET, socket.AF_INET6):
+            # Frames are small and latency matters more than segment count.
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+        peername = transport.get_extra_info("peername")
+        self.peer = f"{peername[0]}:{peername[1]}" if peername else "?"
+        now = time.time()
+        self.endpoint.connection_made(now)
+        self.server._connections.add(self)
+        kv(log, logging.DEBUG, "connection_accepted", peer=self.peer)
+        self._after(now)
+
+    def data_received(self, data: bytes) -> None:
+        now = time.time()
+        self.endpoint.receive_data(data, now)
+        self._after(now)
+
+    def connection_lost(self, exc: Exception | None) -> None:
+        if self._lost:
+            return
+        self._lost = True
+        now = time.time()
+        self.endpoint.connection_lost(now)
+        self.server.scheduler.cancel(self)
+        self.server._on_closed(self)
+        kv(
+            log,
+            logging.INFO,
+            "connection_closed",
+            train=self.endpoint.train_id,
+            peer=self.peer,
+            error=exc or "",
+        )
+
+    # --- scheduler --------------------------------------------------------------------------
+
+    def next_deadline_s(self) -> float | None:
+        return self.endpoint.next_deadline_s()
+
+    def on_tick(self, now_s: float) -> None:
+        if self._lost:
+            return
+        self.endpoint.tick(now_s)
+        self._after(now_s, reschedule=False)
+
+    # --- helpers ----------------------------------------------------------------------------
+
+    @property
+    def open(self) -> bool:
+        return not self._lost and self.transport is not None and not self.transport.is_closing()
+
+    def close(self, reason: str) -> None:
+        if self.transport is not None and not self.transport.is_closing():
+            kv(log, logging.INFO, "closing", train=self.endpoint.train_id, reason=reason)
+            self.transport.close()
+
+    def _after(self, now_s: float, *, reschedule: bool = True) -> None:
+        """Write what the endpoint queued and hand its events to the server."""
+        data = self.endpoint.data_to_send()
+        if data and self.open:
+            assert self.transport is not None
+            self.transport.write(data)
+        for event in self.endpoint.events():
+            self.server._handle(self, event, now_s)
+        if reschedule and not self._lost:
+            self.server.scheduler.schedule(self, now_s=now_s)
+
+
+class GroundServer:
+    """Ground front server: many trains, one endpoint per connection, shared records.
+
+    Use ``await server.start()`` then ``await server.serve(stop_event)``, or
+    ``async with server:``. Delivery methods (:meth:`set_tsr` ...) may be called at any
+    time from the event loop's thread; they act at once for a connected train and wait in
+    the train's record otherwise.
+    """
+
+    def __init__(
+        self,
+        config: GroundConfig,
+        keys: KeyStore | None = None,
+        *,
+        host: str = "127.0.0.1",
+        port: int = 0,
+        scheduler: TickScheduler | None = None,
+        backlog: int = 1024,
+    ) -> None:
+        self.config = config
+        self.keys = keys
+        self.host = host
+        self.port = port
+        self.backlog = backlog
+        self.scheduler = scheduler if scheduler is not None else TickScheduler()
+        self.records: dict[int, TrainRecord] = {}
+        self.views: dict[int, TrainView] = {}
+        #: Registered train id -> its current connection.
+        self.live: dict[int, GroundConnection] = {}
+        self._connections: set[GroundConnection] = set()
+        self._closed_counters = LinkCounters()
+        self._listeners: list[EventListener] = []
+        self._server: asyncio.Server | None = None
+        self.started_at_s: float | None = None
+
+    # --- lifecycle ----------------------------------------------------------------------------
+
+    async def start(self) -> tuple[str, int]:
+        """Start listening; returns the bound ``(host, port)`` (port 0 = ephemeral)."""
+        loop = asyncio.get_running_loop()
+        self._server = await loop.create_server(
+            lambda: GroundConnection(self), self.host, self.port, backlog=self.backlog
+        )
+        sockname = self._server.sockets[0].getsockname()
+        self.port = int(sockname[1])
+        self.started_at_s = time.time()
+        kv(
+            log,
+            logging.INFO,
+            "listening",
+            host=self.host,
+            port=self.port,
+            ground_id=self.config.ground_id,
+            auth=self.config.require_auth,
+        )
+        return self.host, self.port
+
+    async def serve(self, stop: asyncio.Event) -> None:
+        """Serve until ``stop`` is set, then shut down gracefully."""
+        if self._server is None:
+            await self.start()
+        await stop.wait()
+        await self.stop()
+
+    async def stop(self, timeout_s: float = 5.0) -> None:
+        """Stop listening, close every connection (flushing what is queued), stop the timer."""
+        if self._server is not None:
+            self._server.close()
+        for conn in list(self._connections):
+            conn.close("server shutdown")
+        deadline = time.monotonic() + timeout_s
+        while self._connections and time.monotonic() < deadline:
+            await asyncio.sleep(0.01)
+        for conn in list(self._connections):  # peers that would not let go
+            if conn.transport is not None:
+                conn.transport.abort()
+        if self._server is not None:
+            with contextlib.suppress(TimeoutError):
+                await asyncio.wait_for(self._server.wait_closed(), timeout=timeout_s)
+            self._server = None
+        self.scheduler.close()
+        kv(log, logging.INFO, "stopped", trains=len(self.records))
+
+    async def __aenter__(self) -> GroundServer:
+        await self.start()
+        return self
+
+    async def __aexit__(self, *exc: object) -> None:
+        await self.stop()
+
+    def add_listener(self, listener: EventListener) -> None:
+        """Call ``listener(train_id, event, now_s)`` for every endpoint event."""
+        self._listeners.append(listener)
+
+    # --- deliveries (application API) ---------------------------------------------------------
+
+    def known_trains(self) -> list[int]:
+        """Trains that have registered at least once (the targets of ``all``)."""
+        return sorted(t for t, r in self.records.items() if r.registration is not None)
+
+    def _deliver(self, train_id: int, action: str, apply: Callable[[Any, float], None]) -> str:
+        """Run ``apply(endpoint_or_record, now)`` on the live endpoint, else on the record."""
+        now = time.time()
+        conn = self.live.get(train_id)
+        if conn is not None and conn.open and conn.endpoint.train_id == train_id:
+            apply(conn.endpoint, now)
+            conn._after(now)
+            outcome = "sending"
+        else:
+            record = self.records.get(train_id)
+            created = record is None
+            if record is None:
+                record = self.records[train_id] = TrainRecord(train_id)
+            try:
+                apply(record, now)
+            except LinkError:
+                if created:  # a refused request must not invent a train
+                    del self.records[train_id]
+                raise
+            outcome = "queued until the train registers"
+        kv(log, logging.INFO, action, train=train_id, outcome=outcome)
+        return outcome
+
+    def _each(
+        self, train_ids: Iterable[int], action: str, apply: Callable[[Any, float], None]
+    ) -> dict[int, str]:
+        """Deliver to every train; a refusal for one train does not stop the others."""
+        results: dict[int, str] = {}
+        for train_id in train_ids:
+            try:
+                results[train_id] = self._deliver(train_id, action, apply)
+            except LinkError as exc:
+                results[train_id] = f"error: {exc}"
+                kv(log, logging.WARNING, f"{action}_refused", train=train_id, error=exc)
+        return results
+
+    async def paced(
+        self,
+        deliver: Callable[[Iterable[int], Any], dict[int, str]],
+        train_ids: Iterable[int],
+        item: Any,
+        *,
+        batch: int = 50,
+    ) -> dict[int, str]:
+        """Run a delivery method over many trains in batches, yielding to the loop between.
+
+        A broadcast to a thousand trains is a thousand encodes and writes; done in one go
+        it holds up every incoming frame for tens of milliseconds. Batches keep the
+        receive path flowing (``await server.paced(server.set_tsr, ids, tsr)``).
+        """
+        ids = list(train_ids)
+        results: dict[int, str] = {}
+        for start in range(0, len(ids), batch):
+            results.update(deliver(ids[start : start + batch], item))
+            await asyncio.sleep(0)
+        return results
+
+    def set_tsr(self, train_ids: Iterable[int], tsr: TsrSet) -> dict[int, str]:
+        """Set a TSR on each train; resent until acknowledged (also across reconnects)."""
+
+        def apply(target: Any, now: float) -> None:
+            if isinstance(target, GroundEndpoint):
+                target.set_tsr(tsr, now)
+            else:
+                target.add_tsr(tsr)
+
+        return self._each(train_ids, "tsr_set", apply)
+
+    def cancel_tsr(self, train_ids: Iterable[int], session: int) -> dict[int, str]:
+        """Cancel a TSR session on each train; resent until acknowledged."""
+
+        def apply(target: Any, now: float) -> None:
+            if isinstance(target, GroundEndpoint):
+                target.cancel_tsr(session, now)
+            else:
+                target.cancel_tsr(session)
+
+        return self._each(train_ids, "tsr_cancel", apply)
+
+    def send_target_point(self, train_ids: Iterable[int], target: TargetPoint) -> dict[int, str]:
+        def apply(dest: Any, now: float) -> None:
+            if isinstance(dest, GroundEndpoint):
+                dest.send_target_point(target, now)
+            else:
+                dest.add_target_point(target)
+
+        return self._each(train_ids, "target_point", apply)
+
+    def send_dispatch_command(
+        self, train_ids: Iterable[int], command: DispatchCommand
+    ) -> dict[int, str]:
+        def apply(dest: Any, now: float) -> None:
+            if isinstance(dest, GroundEndpoint):
+                dest.send_dispatch_command(command, now)
+            else:
+                dest.add_dispatch_command(command)
+
+        return self._each(train_ids, "dispatch", apply)
+
+    # --- status -------------------------------------------------------------------------------
+
+    def counters(self) -> dict[str, Any]:
+        """Counters summed over every connection so far (closed and open)."""
+        return counters_dict(
+            [self._closed_counters] + [c.endpoint.counters for c in self._connections]
+        )
+
+    def status(self) -> dict[str, Any]:
+        """JSON-ready snapshot: per train registration, running info and deliveries."""
+        now = time.time()
+        trains = []
+        for train_id in sorted(self.records):
+            record = self.records[train_id]
+            view = self.views.get(train_id, TrainView(train_id))
+            conn = self.live.get(train_id)
+            info = view.running_info
+            reg = record.registration
+            trains.append(
+                {
+                    "train_id": train_id,
+                    "connected": conn is not None and conn.open,
+                    "registered": record.registered,
+                    "registrations": view.registrations,
+                    "peer": view.peer,
+                    "train_number": reg.train_number if reg else None,
+                    "loco_number": reg.loco_number if reg else None,
+                    "train_length_m": reg.train_length_m if reg else None,
+                    "running_info": None
+                    if info is None
+                    else {
+                        "position_km": round(info.position_m / 1000.0, 5),
+                        "speed_kmh": round(info.speed_mps * 3.6, 2),
+                        "direction": info.direction.name,
+                        "age_s": round(now - (view.running_info_at_s or now), 3),
+                        "valid": record.running_info.valid,
+                        "count": view.running_info_count,
+                    },
+                    "time_offset_s": record.time_offset_s,
+                    "tsrs": {str(s): d.state.name for s, d in sorted(record.tsrs.items())},
+                    "target_points": {
+                        str(i): d.state.name for i, d in sorted(record.target_points.items())
+                    },
+                    "dispatch_commands": {
+                        str(i): d.state.name for i, d in sorted(record.dispatch_commands.items())
+                    },
+                }
+            )
+        return {
+            "host": self.host,
+            "port": self.port,
+            "ground_id": self.config.ground_id,
+            "uptime_s": round(now - (self.started_at_s or now), 3),
+            "connections": len(self._connections),
+            "registered": sum(1 for t in trains if t["registered"]),
+            "trains": trains,
+            "counters": self.counters(),
+        }
+
+    # --- internals ----------------------------------------------------------------------------
+
+    def _view(self, train_id: int) -> TrainView:
+        view = self.views.get(train_id)
+        if view is None:
+            view = self.views[train_id] = TrainView(train_id)
+        return view
+
+    def _on_closed(self, conn: GroundConnection) -> None:
+        self._connections.discard(conn)
+        train_id = conn.endpoint.train_id
+        if train_id is not None and self.live.get(train_id) is conn:
+            del self.live[train_id]
+        # Keep the totals of finished connections without keeping the connections.
+        closed = self._closed_counters
+        for name in _COUNTER_FIELDS:
+            setattr(closed, name, getattr(closed, name) + getattr(conn.endpoint.counters, name))
+        closed.rejected.update(conn.endpoint.counters.rejected)
+
+    def _handle(self, conn: GroundConnection, event: Event, now_s: float) -> None:
+        train_id = conn.endpoint.train_id
+        if isinstance(event, MessageReceived):
+            message = event.message
+            if isinstance(message, RunningInfo) and train_id is not None:
+                view = self._view(train_id)
+                view.running_info = message
+                view.running_info_at_s = now_s
+                view.running_info_count += 1
+            elif isinstance(message, TimeOffsetReport):
+                kv(log, logging.DEBUG, "time_offset", train=train_id, offset_s=message.offset_s)
+        elif isinstance(event, TrainRegistered):
+            old = self.live.get(event.train_id)
+            if old is not None and old is not conn:
+                old.close("train registered on a new connection")
+            self.live[event.train_id] = conn
+            view = self._view(event.train_id)
+            view.registrations += 1
+            view.registered_at_s = now_s
+            view.peer = conn.peer
+            kv(
+                log,
+                logging.INFO,
+                "registered",
+                train=event.train_id,
+                train_number=event.request.train_number,
+                loco=event.request.loco_number,
+                length_m=event.request.train_length_m,
+                peer=conn.peer,
+            )
+        elif isinstance(event, TrainDeregistered):
+            if self.live.get(event.train_id) is conn:
+                del self.live[event.train_id]
+            kv(log, logging.INFO, "deregistered", train=event.train_id, reason=event.reason.name)
+        elif isinstance(
+            event,
+            TsrAcknowledged
+            | TsrCancelAcknowledged
+            | TsrRefusedByTrain
+            | DispatchAcknowledged
+            | TargetPointAcknowledged,
+        ):
+            self._view(event.train_id).acks[type(event).__name__] += 1
+            fields = {k: getattr(event, k) for k in event.__dataclass_fields__}
+            fields = {k: getattr(v, "name", v) for k, v in fields.items()}
+            kv(log, logging.INFO, _EVENT_NAMES[type(event)], **fields)
+        elif isinstance(event, FrameRejected):
+            kv(
+                log,
+                logging.WARNING,
+                "frame_rejected",
+                train=train_id,
+                check=event.check.value,
+                detail=event.detail,
+                claimed_type=event.message_type,
+                claimed_source=event.source_id,
+                claimed_seq=event.sequence,
+            )
+        elif isinstance(event, SequenceGap):
+            kv(log, logging.WARNING, "sequence_gap", train=train_id, lost=event.lost)
+        elif isinstance(event, PeriodicTimedOut):
+            kv(
+                log,
+                logging.WARNING,
+                "timeout",
+                train=train_id,
+                message=event.message_type.name,
+                missed_cycles=event.missed_cycles,
+            )
+        elif isinstance(event, LinkFailed):
+            kv(log, logging.WARNING, "link_failed", train=train_id, reason=event.reason)
+            conn.close(f"link failed: {event.reason}")
+        for listener in self._listeners:
+            listener(train_id, event, now_s)
+
+
+_EVENT_NAMES: dict[type, str] = {
+    TsrAcknowledged: "tsr_acknowledged",
+    TsrCancelAcknowledged: "tsr_cancel_acknowledged",
+    TsrRefusedByTrain: "tsr_refused_by_train",
+    DispatchAcknowledged: "dispatch_acknowledged",
+    TargetPointAcknowledged: "target_point_acknowledged",
+}

@@ -1,0 +1,117 @@
+"""One timer for many endpoints: a deadline heap driven by a single asyncio timer handle.
+
+A thousand trains must not mean a thousand sleeping tasks polling every 50 ms: each
+endpoint says when it next needs :meth:`~railpilot.link.Endpoint.tick`
+(``next_deadline_s()``), and this scheduler keeps those deadlines in a heap and arms ONE
+``loop.call_at`` for the earliest. Ticks therefore happen when something is due (a
+heartbeat, running info, a resend, a timeout), not on a fixed grid.
+
+Core times are epoch seconds (``time.time()``, frame timestamps derive from it); asyncio
+timers run on the loop's monotonic clock. The conversion happens here and only here.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import heapq
+import itertools
+import time
+from typing import Protocol
+
+
+class Tickable(Protocol):
+    """What the scheduler drives: usually a connection adapter around one endpoint."""
+
+    #: Deadline (epoch s) this item is queued for, ``None`` when not queued. Owned by the
+    #: scheduler; an adapter only initialises it to ``None``.
+    scheduled_s: float | None
+
+    def next_deadline_s(self) -> float | None:
+        """Latest epoch time of the next tick (``None``: nothing pending)."""
+        ...
+
+    def on_tick(self, now_s: float) -> None:
+        """Tick the endpoint, write its output, handle its events."""
+        ...
+
+
+class TickScheduler:
+    """Calls ``on_tick`` of many items at their deadlines from one timer handle.
+
+    ``max_interval_s`` caps the wait even when an item reports no deadline, so a missed
+    reschedule can only delay a tick, never lose it. ``min_interval_s`` keeps an item whose
+    deadline is already past but which cannot act on it yet (a ground endpoint that does not
+    know its peer) from spinning the loop.
+    """
+
+    def __init__(self, *, max_interval_s: float = 0.5, min_interval_s: float = 0.01) -> None:
+        self.max_interval_s = max_interval_s
+        self.min_interval_s = min_interval_s
+        self._heap: list[tuple[float, int, Tickable]] = []
+        self._order = itertools.count()
+        self._handle: asyncio.TimerHandle | None = None
+        self._armed_s = float("inf")
+        self._closed = False
+        #: Number of ``on_tick`` calls made (for the load test's report).
+        self.ticks = 0
+
+    def schedule(self, item: Tickable, *, now_s: float | None = None) -> None:
+        """(Re)queue ``item`` at its next deadline; call after anything touched it."""
+        if self._closed:
+            return
+        now = time.time() if now_s is None else now_s
+        deadline = item.next_deadline_s()
+        if deadline is None:
+            deadline = now + self.max_interval_s
+        deadline = min(max(deadline, now + self.min_interval_s), now + self.max_interval_s)
+        if item.scheduled_s is not None and item.scheduled_s <= deadline:
+            return  # an earlier wake-up is already queued; it will reschedule
+        item.scheduled_s = deadline
+        heapq.heappush(self._heap, (deadline, next(self._order), item))
+        if deadline < self._armed_s:
+            self._arm(deadline)
+
+    def cancel(self, item: Tickable) -> None:
+        """Stop ticking ``item`` (its heap entry is dropped lazily)."""
+        item.scheduled_s = None
+
+    def close(self) -> None:
+        """Stop all ticking."""
+        self._closed = True
+        if self._handle is not None:
+            self._handle.cancel()
+            self._handle = None
+        for _, _, item in self._heap:
+            item.scheduled_s = None
+        self._heap.clear()
+
+    def __len__(self) -> int:
+        return len(self._heap)
+
+    def _arm(self, deadline_s: float) -> None:
+        loop = asyncio.get_running_loop()
+        if self._handle is not None:
+            self._handle.cancel()
+        self._armed_s = deadline_s
+        self._handle = loop.call_at(loop.time() + (deadline_s - time.time()), self._fire)
+
+    def _fire(self) -> None:
+        self._handle = None
+        self._armed_s = float("inf")
+        heap = self._heap
+        while heap:
+            now = time.time()
+            deadline, _, item = heap[0]
+            if deadline > now:
+                break
+            heapq.heappop(heap)
+            if item.scheduled_s != deadline:
+                continue  # stale entry: cancelled or requeued earlier
+            item.scheduled_s = None
+            self.ticks += 1
+            # Each item gets a fresh clock reading: its frame timestamps are taken here.
+            item.on_tick(now)
+            if item.scheduled_s is None and not self._closed:
+                self.schedule(item, now_s=now)
+        if heap and not self._closed:
+            self._arm(heap[0][0])
