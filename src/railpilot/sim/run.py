@@ -49,11 +49,11 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     # tau_c and the remaining free parameters: the winners of the grid search in
     # railpilot/reproduce/tune_smarc_ep.py (same method and objective for both)
     if name == "pid":
-        tau_c = 1.0 * delay
+        tau_c = 1.5 * delay
         return dict(
             simc_pid_integrating(1.0, delay, lag, tau_c_s=tau_c),
             anti_windup="backcalc",
-            position_gain=tracking_position_gain(delay, lag, tau_c, factor=0.75),
+            position_gain=tracking_position_gain(delay, lag, tau_c, factor=1.0),
         )
     if name == "smarc":
         return dict(
