@@ -146,9 +146,9 @@ BAD = [
     (
         "bad controller parameter value",
         {"controller": {"smarc": {"phi": -1.0}}},
-        "controller.smarc",
-        "{'phi': -1.0}",
-        "phi = -1.0 is not allowed",
+        "controller.smarc.phi",
+        "-1.0",
+        "a finite number >= 0",
     ),
     (
         "unknown reference shape",

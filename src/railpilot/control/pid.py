@@ -79,6 +79,12 @@ def pid_step(
     return output
 
 
+def _finite_number(value: object) -> bool:
+    return (
+        isinstance(value, int | float) and not isinstance(value, bool) and bool(np.isfinite(value))
+    )
+
+
 class PID(Controller):
     """Parallel-form PID.
 
@@ -114,7 +120,7 @@ class PID(Controller):
         derivative_on: Literal["measurement", "error"] = "measurement",
     ) -> None:
         low, high = check_limits(output_limits)
-        if derivative_filter_s < 0 or not np.isfinite(derivative_filter_s):
+        if not _finite_number(derivative_filter_s) or derivative_filter_s < 0:
             raise ValueError(
                 f"derivative_filter_s = {derivative_filter_s!r} is not allowed: "
                 "expected a finite number >= 0 [s]"
@@ -129,7 +135,7 @@ class PID(Controller):
                 "expected 'measurement' or 'error'"
             )
         for label, gain in (("kp", kp), ("ki", ki), ("kd", kd)):
-            if not np.isfinite(gain):
+            if not _finite_number(gain):
                 raise ValueError(f"{label} = {gain!r} is not allowed: expected a finite number")
         if backcalc_gain is None:
             backcalc_gain = ki / kp if (kp != 0 and ki != 0) else 1.0
@@ -195,7 +201,7 @@ class TrackingPID(PID):
         **kwargs: Any,
     ) -> None:
         super().__init__(kp, ki, kd, **kwargs)
-        if not (np.isfinite(position_gain) and position_gain >= 0):
+        if not (_finite_number(position_gain) and position_gain >= 0):
             raise ValueError(
                 f"position_gain = {position_gain!r} is not allowed: "
                 "expected a finite number >= 0 [1/s]"

@@ -101,6 +101,27 @@ def smarc_step(
     return u_out
 
 
+def _check_pairs(**pairs: object) -> None:
+    """Each argument a pair of numbers (``theta_bounds`` a pair of pairs)."""
+
+    def is_pair(value: object) -> bool:
+        return (
+            isinstance(value, tuple | list)
+            and len(value) == 2
+            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
+        )
+
+    for name, value in pairs.items():
+        ok = (
+            (isinstance(value, tuple | list) and len(value) == 2 and all(is_pair(v) for v in value))
+            if name == "theta_bounds"
+            else is_pair(value)
+        )
+        if not ok:
+            shape = "a pair of (min, max) pairs" if name == "theta_bounds" else "a pair of numbers"
+            raise ValueError(f"{name} = {value!r} is not allowed: expected {shape}")
+
+
 class SMARC(Controller):
     """Sliding-mode adaptive robust tracking controller.
 
@@ -141,6 +162,7 @@ class SMARC(Controller):
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
         low, high = check_limits(output_limits)
+        _check_pairs(gamma=gamma, theta0=theta0, theta_bounds=theta_bounds)
         values = {
             "c": c,
             "ks": ks,

@@ -26,6 +26,7 @@ import numpy as np
 from numba import njit, prange
 
 from railpilot.brakes.ep_blend import EPBrake
+from railpilot.control.base import Controller
 from railpilot.errors import ConfigError
 from railpilot.scenario.model import ATOModel, Scenario
 from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, MonteCarloSpec
@@ -224,18 +225,22 @@ class _Chunk:
 
 def _pack_chunk(
     nominal: Scenario,
-    controller_name: str,
+    controller: Controller,
     base: KernelInputs,
     values: dict[str, np.ndarray],
     seeds: np.ndarray,
     start: int,
     stop: int,
 ) -> _Chunk:
-    rows = []
-    for i in range(start, stop):
-        variant = _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i]))
-        inp = prepare_inputs(variant, make_controller(nominal, controller_name), reference=base)
-        rows.append(inp)
+    # one controller for every run: tuned once on the nominal plant, reset by prepare
+    rows = [
+        prepare_inputs(
+            _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i])),
+            controller,
+            reference=base,
+        )
+        for i in range(start, stop)
+    ]
     return _Chunk(
         train=np.stack([r.train for r in rows]),
         brake_p=np.stack([r.brake_p for r in rows]),
@@ -254,9 +259,10 @@ def run_chunk(
     Pure function of its arguments (this is what a Dask worker executes).
     """
     nominal = freeze_ato(scenario)
-    base = prepare_inputs(nominal, make_controller(nominal, controller_name))
+    controller = make_controller(nominal, controller_name)
+    base = prepare_inputs(nominal, controller)
     values, seeds = spec.samples()
-    chunk = _pack_chunk(nominal, controller_name, base, values, seeds, start, stop)
+    chunk = _pack_chunk(nominal, controller, base, values, seeds, start, stop)
     metrics = np.zeros((stop - start, engine.N_METRICS))
     run_batch_kernel(
         base.n_steps,

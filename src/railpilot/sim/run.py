@@ -118,13 +118,74 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
                 value,
                 f"a parameter of {cls.__name__}: {', '.join(allowed)}",
             )
-    params.update(overrides)
+    # each value must have the shape of the parameter's default, before any arithmetic
     a_max = scenario.train.max_service_decel_mps2
     params.setdefault("output_limits", (-a_max, a_max))
+    defaults = {k: p.default for k, p in _signature_defaults(cls).items()}
+    defaults.update(params)
+    for key, value in overrides.items():
+        if not _same_shape(value, defaults.get(key)):
+            raise ConfigError(f"controller.{name}.{key}", value, _describe_shape(defaults.get(key)))
+    params.update(overrides)
     try:
         return cls(**params)
-    except (TypeError, ValueError) as exc:
-        raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({exc})") from exc
+    except (TypeError, ValueError, IndexError) as exc:
+        # the constructors' messages start with the parameter's name: point at its key
+        message = str(exc)
+        key = message.split(" = ", 1)[0]
+        if key in overrides and ": expected " in message:
+            raise ConfigError(
+                f"controller.{name}.{key}", overrides[key], message.split(": expected ", 1)[1]
+            ) from exc
+        raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({message})") from exc
+
+
+def _signature_defaults(cls: type) -> dict[str, inspect.Parameter]:
+    """Keyword parameters with defaults along ``cls``'s ``__init__`` chain."""
+    out: dict[str, inspect.Parameter] = {}
+    for klass in reversed(cls.__mro__):
+        init = klass.__dict__.get("__init__")
+        # object's slot wrapper has no Python signature (inspect would parse its text)
+        if init is not None and klass is not object:
+            for p in inspect.signature(init).parameters.values():
+                if p.default is not inspect.Parameter.empty:
+                    out[p.name] = p
+    return out
+
+
+def _is_number(value: Any) -> bool:
+    return isinstance(value, int | float) and not isinstance(value, bool)
+
+
+def _same_shape(value: Any, reference: Any) -> bool:
+    """Does a user's value have the shape of the parameter's default (number, text, pair)?"""
+    if reference is None:
+        return value is None or _is_number(value)
+    if isinstance(reference, bool):
+        return isinstance(value, bool)
+    if _is_number(reference):
+        return _is_number(value)
+    if isinstance(reference, str):
+        return isinstance(value, str)
+    if isinstance(reference, tuple | list):
+        return (
+            isinstance(value, tuple | list)
+            and len(value) == len(reference)
+            and all(_same_shape(v, r) for v, r in zip(value, reference, strict=True))
+        )
+    return True  # a kind of default we do not know: the constructor judges
+
+
+def _describe_shape(reference: Any) -> str:
+    if reference is None or _is_number(reference):
+        return "a number"
+    if isinstance(reference, bool):
+        return "true or false"
+    if isinstance(reference, str):
+        return "a string"
+    if isinstance(reference, tuple | list):
+        return f"a list of {len(reference)}: [{', '.join(_describe_shape(r) for r in reference)}]"
+    return "a valid value"
 
 
 @dataclass
