@@ -71,3 +71,9 @@ def test_wrong_shape_and_too_few_points():
         TorqueTable(np.array([0.0, 1.0]), np.array([0.0, 1.0, 2.0]), np.zeros((2, 2)))
     with pytest.raises(ConfigError, match="at least 2 points"):
         TorqueTable(np.array([0.0]), np.array([0.0, 1.0]), np.zeros((1, 2)))
+
+
+def test_a_grid_too_large_to_build_is_refused_by_key() -> None:
+    # 0.0001 A x 0.0001 km/h steps would ask for ~1.5e13 points: refused, not attempted
+    with pytest.raises(ConfigError, match=r"table\.current_step_a"):
+        TorqueTable.from_model(current_step_a=1e-4, speed_step_kmh=1e-4)

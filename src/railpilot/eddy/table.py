@@ -89,6 +89,10 @@ def _check_axis(name: str, axis: np.ndarray) -> np.ndarray:
     return axis
 
 
+#: largest analytic grid (currents x speeds): 10 million points, 80 MB of float64
+MAX_GRID_POINTS = 10_000_000
+
+
 @dataclass(frozen=True)
 class TorqueTable:
     """A validated torque table ``M(I, v)``.
@@ -161,6 +165,14 @@ class TorqueTable:
                 raise ConfigError(name, value, "a finite number > 0")
         n_i = round(max_current_a / current_step_a) + 1
         n_v = round(max_speed_kmh / speed_step_kmh) + 1
+        # a grid is a table in memory: refuse one that could not be built (or used)
+        if n_i * n_v > MAX_GRID_POINTS:
+            raise ConfigError(
+                "table.current_step_a / table.speed_step_kmh",
+                (current_step_a, speed_step_kmh),
+                f"steps giving at most {MAX_GRID_POINTS:,} grid points "
+                f"(these give {n_i:,} x {n_v:,})",
+            )
         currents = np.linspace(0.0, max_current_a, max(n_i, MIN_POINTS))
         speeds = kmh_to_mps(np.linspace(0.0, max_speed_kmh, max(n_v, MIN_POINTS)))
         torque = eddy_torque_at_speed_nm(currents[:, None], speeds[None, :], brake)

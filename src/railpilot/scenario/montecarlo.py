@@ -101,8 +101,12 @@ class MonteCarloSpec:
     chunk: int = 500
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.runs, int) and 1 <= self.runs <= 10_000_000):
-            raise ConfigError("montecarlo.runs", self.runs, "an integer in [1, 10000000]")
+        if not (isinstance(self.runs, int) and 1 <= self.runs <= 2_000_000):
+            raise ConfigError(
+                "montecarlo.runs",
+                self.runs,
+                "an integer in [1, 2000000] (each run keeps about 150 bytes of metrics)",
+            )
         if not (isinstance(self.seed, int) and self.seed >= 0):
             raise ConfigError("montecarlo.seed", self.seed, "an integer >= 0")
         if not (isinstance(self.chunk, int) and self.chunk >= 1):
