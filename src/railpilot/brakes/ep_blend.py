@@ -56,6 +56,10 @@ S_K, S_FCMD, S_E, S_A, S_ENV0, S_FADING, S_T0 = range(7)
 N_STATE = 7
 
 
+#: longest delay, lag or pre-notice the EP brake model accepts [s]
+MAX_TIME_S = 60.0
+
+
 @dataclass(frozen=True)
 class EPBrake:
     """Parameters of the blended brake.
@@ -117,6 +121,11 @@ class EPBrake:
                 raise ConfigError(f"brake.{name}", value, "a finite number > 0")
         if not (isinstance(self.cutout_cars, int) and self.cutout_cars >= 0):
             raise ConfigError("brake.cutout_cars", self.cutout_cars, "an integer >= 0")
+        # a brake slower than a minute is a configuration error, not a brake
+        for name in ("delay_s", "air_lag_s", "electric_lag_s", "prenotice_s"):
+            value = getattr(self, name)
+            if value > MAX_TIME_S:
+                raise ConfigError(f"brake.{name}", value, f"a number in [0, {MAX_TIME_S:g}] s")
 
     def pack(
         self,

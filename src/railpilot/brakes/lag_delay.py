@@ -28,6 +28,9 @@ from scipy.linalg import expm
 
 from railpilot.errors import ConfigError
 
+#: longest delay line the exact method builds (80 MB of float64)
+MAX_DELAY_STEPS = 10_000_000
+
 # params layout of the exact kernel
 E_ALPHA_F, E_ALPHA_REST, E_N, E_FRAC, E_LEN = range(5)
 
@@ -143,6 +146,10 @@ class LagDelay:
         self.initial = float(initial)
         if method == "exact":
             steps = self.delay_s / self.dt
+            if steps > MAX_DELAY_STEPS:
+                raise ConfigError(
+                    "delay_s", delay_s, f"at most {MAX_DELAY_STEPS:,} steps of dt = {dt} s"
+                )
             n = int(np.floor(steps + 1e-9))
             frac = max(steps - n, 0.0) if abs(steps - round(steps)) > 1e-9 else 0.0
             self.params = np.zeros(5)

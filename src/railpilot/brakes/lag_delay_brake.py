@@ -15,6 +15,9 @@ import numpy as np
 from railpilot.brakes.lag_delay import LagDelay
 from railpilot.errors import ConfigError
 
+#: longest lag or delay a brake model accepts [s]
+MAX_TIME_S = 60.0
+
 
 @dataclass(frozen=True)
 class LagDelayBrake:
@@ -37,8 +40,9 @@ class LagDelayBrake:
     def __post_init__(self) -> None:
         for name in ("lag_s", "delay_s"):
             value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ConfigError(f"brake.{name}", value, "a finite number >= 0 [s]")
+            # a brake slower than a minute is a configuration error, not a brake
+            if not (np.isfinite(value) and 0 <= value <= MAX_TIME_S):
+                raise ConfigError(f"brake.{name}", value, f"a number in [0, {MAX_TIME_S:g}] s")
         if not (np.isfinite(self.max_decel_mps2) and self.max_decel_mps2 > 0):
             raise ConfigError("brake.max_decel_mps2", self.max_decel_mps2, "a number > 0")
 

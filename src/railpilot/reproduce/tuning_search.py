@@ -23,7 +23,7 @@ from railpilot.control.tuning import (
     tracking_position_gain,
 )
 from railpilot.scenario.model import ControllerSpec, Scenario
-from railpilot.sim.run import ato_brake_model, simulate
+from railpilot.sim.run import simulate, tuning_model
 
 Grid = dict[str, tuple[float, ...]]
 ParamMaker = Callable[..., dict[str, Any]]
@@ -31,7 +31,7 @@ ParamMaker = Callable[..., dict[str, Any]]
 
 def pid_params(scenario: Scenario, tau_c_factor: float, position_factor: float) -> dict[str, Any]:
     """Tracking PID: SIMC PID with ``tau_c = factor * theta``, position loop by rule."""
-    delay, lag = ato_brake_model(scenario)
+    delay, lag = tuning_model(scenario)
     tau_c = tau_c_factor * delay
     return dict(
         simc_pid_integrating(1.0, delay, lag, tau_c_s=tau_c),
@@ -50,7 +50,7 @@ def smarc_params(
     gamma2: float,
 ) -> dict[str, Any]:
     """SMARC: SIMC PI rule for ``c, ks`` with ``tau_c = factor * theta_eff``, the rest given."""
-    delay, lag = ato_brake_model(scenario)
+    delay, lag = tuning_model(scenario)
     return dict(
         smarc_from_simc(1.0, delay, lag, tau_c_s=tau_c_factor * (delay + lag)),
         alpha=alpha,

@@ -45,7 +45,7 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     The ATO's model of the brake (``ato.brake_delay_s`` and ``ato.brake_lag_s``, else
     the true delay and lag) goes into the tuning rules of control/tuning.py.
     """
-    delay, lag = ato_brake_model(scenario)
+    delay, lag = tuning_model(scenario)
     # tau_c and the remaining free parameters: the winners of the grid search in
     # railpilot/reproduce/tune_smarc_ep.py (same method and objective for both)
     if name == "pid":
@@ -80,6 +80,17 @@ def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
         delay if ato.brake_delay_s is None else ato.brake_delay_s,
         lag if ato.brake_lag_s is None else ato.brake_lag_s,
     )
+
+
+def tuning_model(scenario: Scenario) -> tuple[float, float]:
+    """The ``(theta, T)`` the tuning rules get: the ATO's brake model, with ``theta > 0``.
+
+    SIMC needs a delay; a sampled controller always has at least half a control period
+    of effective delay (Skogestad 2003, section 3.2), which stands in when the model
+    has none.
+    """
+    delay, lag = ato_brake_model(scenario)
+    return (delay if delay > 0 else scenario.sim.control_period_s / 2.0), lag
 
 
 def _parameter_names(cls: type) -> list[str]:
