@@ -53,6 +53,10 @@ def write_report(sections: list[Reproduction], out_dir: Path) -> Path:
     )
     for s in sections:
         parts.append(f"<h2 id='{s.scenario}'>{html.escape(s.title)}</h2>")
+        parts.append(
+            f"<p class='note'>Rerun this section alone: <code>railpilot reproduce "
+            f"{html.escape(s.scenario)} --json</code></p>"
+        )
         if s.findings:
             parts.append(
                 "<ul>" + "".join(f"<li>{html.escape(f)}</li>" for f in s.findings) + "</ul>"
