@@ -30,6 +30,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from railpilot.brakes.ep_blend import N_STATE as EP_N_STATE
 from railpilot.brakes.ep_blend import P_BUF_LEN as EP_BUF_LEN
 from railpilot.brakes.ep_blend import ep_brake_step
 from railpilot.brakes.lag_delay import E_LEN, lag_delay_exact_step
@@ -45,7 +46,6 @@ ACT_EP = 0
 ACT_LAG_DELAY = 1
 #: index of ``a_max`` [m/s^2] in a lag-delay brake's params (after LagDelay's five)
 LD_A_MAX = 5
-N_LD_PARAMS = 6
 
 # train params (T_BRAKE_GAIN: the brake's true effort relative to nominal, e.g. shoe
 # friction above or below what the brake manager assumes; the air path for EP brakes)
@@ -118,7 +118,8 @@ def brake_buffer_length(act_kind: int, brake_p: np.ndarray) -> int:
 
 @njit(cache=True)
 def brake_state_length(act_kind: int) -> int:
-    return 7 if act_kind == ACT_EP else 2
+    """Floats of state the brake keeps (the lag-delay kernel: output and step index)."""
+    return EP_N_STATE if act_kind == ACT_EP else 2
 
 
 @njit(cache=True)
