@@ -93,24 +93,20 @@ def tuning_model(scenario: Scenario) -> tuple[float, float]:
     return (delay if delay > 0 else scenario.sim.control_period_s / 2.0), lag
 
 
-def _parameter_names(cls: type) -> list[str]:
+def _constructor_parameters(cls: type) -> dict[str, inspect.Parameter]:
     """Keyword parameters a controller class takes, following ``**kwargs`` to its base."""
-    names: list[str] = []
+    found: dict[str, inspect.Parameter] = {}
     for klass in cls.__mro__:
         init = klass.__dict__.get("__init__")
-        if init is None:
+        if init is None or klass is object:  # object's slot wrapper has no Python signature
             continue
         params = inspect.signature(init).parameters.values()
-        names += [
-            p.name
-            for p in params
-            if p.name != "self"
-            and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL)
-            and p.name not in names
-        ]
+        for p in params:
+            if p.name != "self" and p.kind not in (p.VAR_KEYWORD, p.VAR_POSITIONAL):
+                found.setdefault(p.name, p)
         if not any(p.kind == p.VAR_KEYWORD for p in params):
             break
-    return names
+    return found
 
 
 def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
@@ -121,7 +117,8 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
     params = default_controller_params(scenario, name)
     overrides = scenario.controller.params.get(name, {})
     cls = CONTROLLER_CLASSES[name]
-    allowed = _parameter_names(cls)
+    accepted = _constructor_parameters(cls)
+    allowed = list(accepted)
     for key, value in overrides.items():
         if key not in allowed:
             raise ConfigError(
@@ -132,7 +129,7 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
     # each value must have the shape of the parameter's default, before any arithmetic
     a_max = scenario.train.max_service_decel_mps2
     params.setdefault("output_limits", (-a_max, a_max))
-    defaults = {k: p.default for k, p in _signature_defaults(cls).items()}
+    defaults = {k: None if p.default is p.empty else p.default for k, p in accepted.items()}
     defaults.update(params)
     for key, value in overrides.items():
         if not _same_shape(value, defaults.get(key)):
@@ -149,19 +146,6 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
                 f"controller.{name}.{key}", overrides[key], message.split(": expected ", 1)[1]
             ) from exc
         raise ConfigError(f"controller.{name}", overrides, f"valid parameters ({message})") from exc
-
-
-def _signature_defaults(cls: type) -> dict[str, inspect.Parameter]:
-    """Keyword parameters with defaults along ``cls``'s ``__init__`` chain."""
-    out: dict[str, inspect.Parameter] = {}
-    for klass in reversed(cls.__mro__):
-        init = klass.__dict__.get("__init__")
-        # object's slot wrapper has no Python signature (inspect would parse its text)
-        if init is not None and klass is not object:
-            for p in inspect.signature(init).parameters.values():
-                if p.default is not inspect.Parameter.empty:
-                    out[p.name] = p
-    return out
 
 
 def _is_number(value: Any) -> bool:
