@@ -14,16 +14,22 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
     [line]   gradients = [{start_km, end_km, permille}], curves = [{start_km, end_km,
              radius_m}], speed_limits = [{start_km, end_km, limit_kmh}],
              stations = [{name, stop_km}]
-    [brake]  delay_s, air_lag_s, electric_lag_s, jerk_limit_mps3, changeover_kmh,
-             fade_rate_kn_per_s, prenotice_s, cutout_cars, cutout_time_s, beta = [b1, b2, b3]
+    [brake]  model = "ep-blended" (default): delay_s, air_lag_s, electric_lag_s,
+             jerk_limit_mps3, changeover_kmh, fade_rate_kn_per_s, prenotice_s,
+             cutout_cars, cutout_time_s, beta = [b1, b2, b3]
+             model = "lag-delay" (paper 002): lag_s, delay_s, max_decel_mps2
     [reference]  shape = "smooth" | "constant", start_km, v0_kmh, decel_mps2,
              jerk_mps3, final_decel_mps2, final_phase_speed_kmh,
              coast_s, ease_out
-    [disturbance]  constant_kn, random_std_kn, random_hold_s, seed,
-             regions = [{start_km, end_km, force_kn}]
+    [disturbance]  constant_kn, random_std_kn, random_hold_s, target_fraction, seed,
+             regions = [{start_km, end_km, force_kn | accel_mps2}]
     [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s
-    [controller]  name = "pid" | "smarc"; [controller.pid] / [controller.smarc] params
+    [controller]  name = "pid" | "smarc" | "qsmc"; [controller.NAME] its parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
+    [realism]  speed_noise_std_mps, speed_resolution_mps, wheel_scale_error, slide_slip,
+             balises_km = [...], adhesion, slide_ratio, notches, seed
+    [montecarlo]  runs, seed, chunk; [montecarlo.vary] "KEY" = {dist, min, max, mean, std}
+             (docs/montecarlo.md)
 """
 
 from __future__ import annotations
