@@ -179,7 +179,11 @@ def run_batch_kernel(
     balises: np.ndarray,
     metrics: np.ndarray,
 ) -> None:
-    """:func:`engine.run_kernel` for every row of the per-run 2-D arrays, in parallel."""
+    """:func:`engine.run_kernel` for every row of the per-run 2-D arrays, in parallel.
+
+    Per run (2-D, one row a run): ``train, brake_p, dist_const, random_n, ato, real,
+    speed_noise``; shared by all runs: the line, regions, reference, controller, balises.
+    """
     empty = np.zeros((0, engine.N_CHANNELS))
     for i in prange(train.shape[0]):
         engine.run_kernel(
@@ -204,7 +208,7 @@ def run_batch_kernel(
             kind,
             ctrl_p,
             ctrl_s0,
-            real,
+            real[i],
             speed_noise[i],
             balises,
             empty,
@@ -215,12 +219,15 @@ def run_batch_kernel(
 
 @dataclass
 class _Chunk:
+    """The per-run inputs of a chunk of runs, one row a run."""
+
     train: np.ndarray
     brake_p: np.ndarray
     ato: np.ndarray
     dist_const: np.ndarray
     random_n: np.ndarray
     speed_noise: np.ndarray
+    real: np.ndarray
 
 
 def _pack_chunk(
@@ -248,6 +255,7 @@ def _pack_chunk(
         dist_const=np.array([r.dist_const for r in rows]),
         random_n=np.stack([r.random_n for r in rows]),
         speed_noise=np.stack([r.speed_noise for r in rows]),
+        real=np.stack([r.real for r in rows]),
     )
 
 
@@ -286,7 +294,7 @@ def run_chunk(
         base.kind,
         base.ctrl_p,
         base.ctrl_s0,
-        base.real,
+        chunk.real,
         chunk.speed_noise,
         base.balises,
         metrics,

@@ -34,6 +34,8 @@ from railpilot.brakes.ep_blend import N_STATE as EP_N_STATE
 from railpilot.brakes.ep_blend import P_BUF_LEN as EP_BUF_LEN
 from railpilot.brakes.ep_blend import ep_brake_step
 from railpilot.brakes.lag_delay import E_LEN, lag_delay_exact_step
+from railpilot.control.pid import P_HI as PID_HI
+from railpilot.control.pid import P_LO as PID_LO
 from railpilot.control.pid import pid_step, tracking_setpoint
 from railpilot.control.qsmc import qsmc_step as _qsmc
 from railpilot.control.smarc import smarc_step
@@ -161,6 +163,9 @@ def run_kernel(
     never changed and a batch can share them.
     """
     ctrl_s = ctrl_s0.copy()
+    # a private copy: the PID's limits are moved every update (below), and a batch
+    # shares ``ctrl_p`` between runs running in parallel
+    ctrl_p = ctrl_p.copy()
     brake_s = np.zeros(brake_state_length(act_kind))
     brake_buf = np.zeros(brake_buffer_length(act_kind, brake_p))
     m_eff = train[T_MEFF]
@@ -226,8 +231,15 @@ def run_kernel(
                 / ato[A_MEFF_LW]
             )
             if kind == KIND_PID:
+                # the PID's output is added to the feed-forward and the sum is clamped
+                # by the ATO: tell the PID where that clamp is, so its anti-windup sees
+                # the real saturation (a braking-only ATO cannot pull, and an integrator
+                # that wants traction would otherwise wind up and release the brake late)
+                ff = ref_a_ff[k] + r_model
+                ctrl_p[PID_LO] = ato[A_UMIN] - ff
+                ctrl_p[PID_HI] = ato[A_UMAX] - ff
                 v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x_odo)
-                u = ref_a_ff[k] + r_model + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
+                u = ff + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
             elif kind == KIND_SMARC:
                 u = (
                     smarc_step(

@@ -49,11 +49,11 @@ def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
     # tau_c and the remaining free parameters: the winners of the grid search in
     # railpilot/reproduce/tune_smarc_ep.py (same method and objective for both)
     if name == "pid":
-        tau_c = 1.5 * delay
+        tau_c = 1.0 * delay
         return dict(
             simc_pid_integrating(1.0, delay, lag, tau_c_s=tau_c),
             anti_windup="backcalc",
-            position_gain=tracking_position_gain(delay, lag, tau_c, factor=1.0),
+            position_gain=tracking_position_gain(delay, lag, tau_c, factor=0.75),
         )
     if name == "smarc":
         return dict(
@@ -83,14 +83,14 @@ def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
 
 
 def tuning_model(scenario: Scenario) -> tuple[float, float]:
-    """The ``(theta, T)`` the tuning rules get: the ATO's brake model, with ``theta > 0``.
+    """The ``(theta, T)`` the tuning rules get: the ATO's brake model plus sampling.
 
-    SIMC needs a delay; a sampled controller always has at least half a control period
-    of effective delay (Skogestad 2003, section 3.2), which stands in when the model
-    has none.
+    A controller that updates every ``control_period_s`` adds half a period of
+    effective delay (Skogestad 2003, section 3.2: the zero-order hold), so the rules see
+    ``theta = brake delay + period / 2``; that also keeps ``theta > 0``, which SIMC needs.
     """
     delay, lag = ato_brake_model(scenario)
-    return (delay if delay > 0 else scenario.sim.control_period_s / 2.0), lag
+    return delay + scenario.sim.control_period_s / 2.0, lag
 
 
 def _constructor_parameters(cls: type) -> dict[str, inspect.Parameter]:
