@@ -264,6 +264,22 @@ def test_tsr_expires_at_the_end_of_its_validity() -> None:
     assert link.onboard.active_tsrs == {}
 
 
+def test_tsr_expiry_uses_the_clock_offset_of_the_time_check() -> None:
+    # the time check measures the onboard 10 s ahead of the ground: a TSR valid until
+    # ground time T must stay applied until the onboard's clock reads T + 10 s
+    link = registered_link()
+    ground_time = link.now_s
+    link.ground.send(TimeCheck(ground_time - 10.0), ground_time)
+    link.onboard.receive_data(link.ground.data_to_send(), ground_time)
+    assert link.onboard.time_offset_s == pytest.approx(10.0)
+    link.ground.set_tsr(TsrSet(1, 500.0, 900.0, 10.0, T0, link.now_s + 2.0), link.now_s)
+    link.run(5.0)  # past valid_until on the onboard's own clock, not on the ground's
+    assert not link.events_of("onboard", TsrExpired)
+    assert 1 in link.onboard.active_tsrs
+    link.run(8.0)
+    assert link.events_of("onboard", TsrExpired) == [TsrExpired(1)]
+
+
 def test_cancel_removes_the_tsr_once() -> None:
     link = registered_link()
     link.ground.set_tsr(tsr(), link.now_s)

@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import time
+
 import pytest
 
-from railpilot.link import TsrApplied, TsrCancelled
+from railpilot.link import DeregisterReason, TrainDeregistered, TsrApplied, TsrCancelled
 from railpilot.net.admin import AdminError, AdminServer, admin_request
 
 from .helpers import LENGTH_M, TRAIN_ID, rig, run, until
@@ -21,7 +23,37 @@ def test_status_lists_the_registered_train_with_its_running_info() -> None:
             assert answer["ok"]
             (train,) = answer["result"]["trains"]
             assert train["train_id"] == TRAIN_ID and train["registered"]
+            assert train["connected"] and train["state"] == "REGISTERED"
             assert train["running_info"]["speed_kmh"] == pytest.approx(54.0)
+
+    run(scenario())
+
+
+def test_status_shows_a_deregistered_train_still_connected() -> None:
+    async def scenario() -> None:
+        async with rig() as r:
+            admin = AdminServer(r.server)
+            _, port = await admin.start()
+            await until(lambda: bool(r.running_infos()))
+            (client,) = r.clients
+            now = time.time()
+            client.endpoint.deregister(DeregisterReason.SHUNTING_MODE, now)
+            client._after(now)
+            await until(lambda: bool(r.ground_of(TrainDeregistered)))
+            (train,) = (await admin_request({"op": "status"}, port=port))["result"]["trains"]
+            # protocol.md 8.2: the connection stays up (heartbeats) while deregistered
+            assert train["connected"] is True and train["state"] == "DEREGISTERED"
+            assert train["registered"] is False
+            # a delivery now waits in the record until the train registers again
+            request = {"op": "dispatch", "trains": [TRAIN_ID], "command": 9, "text": "x"}
+            answer = await admin_request(request, port=port)
+            assert answer["result"]["trains"] == {str(TRAIN_ID): "queued until the train registers"}
+            client.drop_connection()
+            await until(lambda: not r.server.open_connections())
+            status = (await admin_request({"op": "status"}, port=port))["result"]
+            (train,) = status["trains"]
+            assert train["connected"] is False and train["state"] is None
+            await admin.stop()
 
     run(scenario())
 
@@ -73,6 +105,34 @@ def test_tsr_set_and_cancel_through_the_admin_api_reach_the_train() -> None:
             "limit_kmh = 999",
         ),
         ({"op": "target", "trains": [TRAIN_ID], "target_id": 1, "km": 3, "reason": "x"}, "reason"),
+        (
+            {
+                "op": "tsr_set",
+                "trains": [TRAIN_ID],
+                "session": 1,
+                "start_km": 120.5,
+                "end_km": 120.500001,  # the same km post on the wire (cm)
+                "limit_kmh": 40,
+                "valid_s": 60,
+            },
+            "end_km = 120.500001 is not allowed: expected a km post at least 1 cm away",
+        ),
+        (
+            {
+                "op": "tsr_set",
+                "trains": [TRAIN_ID, 4242],
+                "session": 1,
+                "start_km": 1,
+                "end_km": 2,
+                "limit_kmh": 40,
+                "valid_s": 60,
+            },
+            "trains = [4242] is not allowed: expected train ids that have a key",
+        ),
+        (
+            {"op": "dispatch", "trains": [4242], "command": 1, "text": "x"},
+            "trains = [4242] is not allowed",
+        ),
     ],
 )
 def test_bad_requests_get_an_error_naming_the_field(request_: dict, needle: str) -> None:
@@ -86,6 +146,27 @@ def test_bad_requests_get_an_error_naming_the_field(request_: dict, needle: str)
 
     answer = run(scenario())
     assert answer["ok"] is False and needle in answer["error"]
+
+
+def test_a_refused_request_delivers_to_no_train_and_invents_none() -> None:
+    async def scenario() -> None:
+        async with rig(start=False) as r:
+            admin = AdminServer(r.server)
+            _, port = await admin.start()
+            request = {
+                "op": "tsr_set",
+                "trains": [TRAIN_ID, 4242],
+                "session": 3,
+                "start_km": 1,
+                "end_km": 2,
+                "limit_kmh": 40,
+                "valid_s": 60,
+            }
+            assert (await admin_request(request, port=port))["ok"] is False
+            assert r.server.records == {}  # not even the train that has a key got it
+            await admin.stop()
+
+    run(scenario())
 
 
 def test_admin_refuses_a_non_loopback_address() -> None:

@@ -122,26 +122,44 @@ def test_every_command_has_help(argv: list[str], capsys: pytest.CaptureFixture[s
 
 
 def test_serve_answers_admin_commands_and_stops_on_sigterm(
-    capsys: pytest.CaptureFixture[str],
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
-    cmd = [sys.executable, "-m", "railpilot.cli", "ground", "serve", "--no-auth", "--port", "0"]
-    cmd += ["--admin-port", "0", "--seconds", "30"]
+    keys = _key_file(tmp_path, 0o600)  # a key for train 1001 only
+    cmd = [sys.executable, "-m", "railpilot.cli", "ground", "serve", "--keys", str(keys)]
+    cmd += ["--port", "0", "--admin-port", "0", "--seconds", "30"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     try:
-        admin_port = None
+        port = admin_port = None
         deadline = time.monotonic() + 15.0
         assert proc.stderr is not None
         while admin_port is None and time.monotonic() < deadline:
             line = proc.stderr.readline()
+            # --port 0 picks a free port and logs it (docs/link-operations.md)
+            match = re.search(r"event=listening host=\S+ port=(\d+)", line)
+            port = int(match.group(1)) if match else port
             match = re.search(r"event=admin_listening host=\S+ port=(\d+)", line)
             admin_port = int(match.group(1)) if match else None
-        assert admin_port is not None
+        assert admin_port is not None and port is not None and port > 0
         assert main(["ground", "status", "--admin-port", str(admin_port), "--json"]) == 0
         status = json.loads(capsys.readouterr().out)
         assert status["ok"] and status["result"]["trains"] == []
+        assert status["result"]["port"] == port
         # No train has registered: 'all' is refused with exit code 2.
         argv = ["ground", "tsr", "cancel", "--train", "all", "--session", "1"]
         assert main([*argv, "--admin-port", str(admin_port)]) == 2
+        capsys.readouterr()
+        # Operator input the server refuses with exit code 2 and a field = value message.
+        tsr = ["ground", "tsr", "set", "--session", "7", "--limit-kmh", "45", "--valid-s", "60"]
+        tsr += ["--admin-port", str(admin_port)]
+        argv = [*tsr, "--train", "1001", "--train", "2002", "--start-km", "1", "--end-km", "2"]
+        assert main(argv) == 2
+        err = capsys.readouterr().err
+        assert "trains = [2002] is not allowed: expected train ids that have a key" in err
+        assert main([*tsr, "--train", "1001", "--start-km", "120", "--end-km", "120.0"]) == 2
+        err = capsys.readouterr().err
+        assert "end_km = 120.0 is not allowed: expected a km post at least 1 cm away" in err
+        assert main(["ground", "status", "--admin-port", str(admin_port), "--json"]) == 0
+        assert json.loads(capsys.readouterr().out)["result"]["trains"] == []  # nothing queued
         proc.send_signal(signal.SIGTERM)
         assert proc.wait(timeout=10.0) == 0
     finally:

@@ -148,10 +148,16 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
         help="run the ground front server",
         description="Accept many trains, record registrations and running info, deliver "
         "TSRs/target points/dispatch commands with resend until acknowledged. Stops "
-        "gracefully on SIGINT/SIGTERM.",
+        "gracefully on SIGINT/SIGTERM. Timers are the defaults of docs/protocol.md section 9 "
+        "(cycle 1 s); the onboard must use the same cycle.",
     )
     p.add_argument("--host", default="127.0.0.1", help="listen address [127.0.0.1]")
-    p.add_argument("--port", type=int, default=DEFAULT_PORT, help=f"link port [{DEFAULT_PORT}]")
+    p.add_argument(
+        "--port",
+        type=int,
+        default=DEFAULT_PORT,
+        help=f"link port, 0 = a free one (logged as event=listening ... port=N) [{DEFAULT_PORT}]",
+    )
     p.add_argument("--keys", type=Path, help="key file (TOML, chmod 600) with per-train keys")
     p.add_argument("--no-auth", action="store_true", help="unauthenticated link (tests only)")
     p.add_argument("--ground-id", type=int, default=1, help="ground device id [1]")
@@ -420,8 +426,9 @@ def _print_status(status: dict[str, Any]) -> None:
             if info
             else "no running info"
         )
+        link = f"connected ({t['state']})" if t["connected"] else "not connected"
         state = "registered" if t["registered"] else "not registered"
-        print(f"  train {t['train_id']} {t['train_number'] or ''}: {state}, {where}")
+        print(f"  train {t['train_id']} {t['train_number'] or ''}: {link}, {state}, {where}")
         for session, s in t["tsrs"].items():
             print(f"    TSR {session}: {s}")
     c = status["counters"]

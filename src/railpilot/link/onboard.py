@@ -230,9 +230,21 @@ class OnboardEndpoint(Endpoint):
     def _link_usable(self) -> bool:
         return self.state in _CONNECTED
 
+    def _ground_time_s(self, now_s: float) -> float:
+        """The ground's clock as the onboard best knows it [s].
+
+        TSR validity times are the ground's. The offset measured by the last time check
+        (onboard minus ground, transmission delay included) is taken off, so a restriction
+        is never lifted early by an onboard clock running ahead; the delay in the offset
+        only errs on the safe side (lifted a little late). Before the first time check
+        the onboard's own clock is used.
+        """
+        return now_s - (self.time_offset_s or 0.0)
+
     def _tick(self, now_s: float) -> None:
+        ground_now = self._ground_time_s(now_s)
         for session, tsr in list(self.active_tsrs.items()):
-            if now_s >= tsr.valid_until_s:
+            if ground_now >= tsr.valid_until_s:
                 del self.active_tsrs[session]
                 self._finished_tsrs.add(session)
                 self._events.append(TsrExpired(session))
@@ -256,7 +268,8 @@ class OnboardEndpoint(Endpoint):
             self._queue(self._running_info, now_s)
 
     def _extra_deadline_s(self) -> float | None:
-        times = [t.valid_until_s for t in self.active_tsrs.values()]
+        offset = self.time_offset_s or 0.0  # valid_until is ground time: onboard = + offset
+        times = [t.valid_until_s + offset for t in self.active_tsrs.values()]
         if self.state in (OnboardState.REGISTERING, OnboardState.DEREGISTERING):
             times.append(self._next_request_s)
         if self.state is OnboardState.REGISTERED and self._running_info is not None:
@@ -345,7 +358,7 @@ class OnboardEndpoint(Endpoint):
             result = TsrSetResult.EXPIRED
         elif tsr.start_m == tsr.end_m or tsr.valid_until_s <= tsr.valid_from_s:
             result = TsrSetResult.INVALID
-        elif tsr.valid_until_s <= now_s:
+        elif tsr.valid_until_s <= self._ground_time_s(now_s):
             result = TsrSetResult.EXPIRED
         else:
             result = TsrSetResult.APPLIED

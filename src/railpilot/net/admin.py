@@ -17,7 +17,9 @@ registered at least once)::
 
 Responses: ``{"ok": true, "result": {...}}`` or ``{"ok": false, "error": "..."}``. For a
 delivery, ``result.trains`` maps each train id to ``"sending"`` (connected; resent until
-acknowledged), ``"queued until the train registers"`` or ``"error: ..."``.
+acknowledged), ``"queued until the train registers"`` or ``"error: ..."``. A delivery
+naming a train without a key (authentication on), and a TSR whose start and end are the
+same km post, are refused as a whole (``ok: false``) and nothing is sent.
 """
 
 from __future__ import annotations
@@ -142,10 +144,19 @@ class AdminServer:
                 start = request.get("valid_from_s", time.time())
                 if not isinstance(start, int | float) or isinstance(start, bool):
                     raise AdminError(f"valid_from_s = {start!r} is not allowed: expected epoch s")
+                session = _int(request, "session", 1, 0xFFFF_FFFF)
+                start_km = _number(request, "start_km", 0.0, 10_000.0)
+                end_km = _number(request, "end_km", 0.0, 10_000.0)
+                if round(start_km * 100_000) == round(end_km * 100_000):
+                    # The train would answer INVALID (protocol.md 8.3): refuse it here.
+                    raise AdminError(
+                        f"end_km = {end_km!r} is not allowed: expected a km post at least "
+                        f"1 cm away from start_km = {start_km!r} (a TSR needs a length)"
+                    )
                 tsr = TsrSet(
-                    _int(request, "session", 1, 0xFFFF_FFFF),
-                    _number(request, "start_km", 0.0, 10_000.0) * 1000.0,
-                    _number(request, "end_km", 0.0, 10_000.0) * 1000.0,
+                    session,
+                    start_km * 1000.0,
+                    end_km * 1000.0,
                     _number(request, "limit_kmh", 0.1, 360.0) / 3.6,
                     float(start),
                     float(start) + valid_s,
@@ -182,7 +193,10 @@ class AdminServer:
         if trains == "all":
             known = self.ground.known_trains()
             if not known:
-                raise AdminError("trains = 'all' but no train has registered yet")
+                raise AdminError(
+                    "trains = 'all' is not allowed: expected at least one train that has "
+                    "registered (none has yet)"
+                )
             return known
         if (
             not isinstance(trains, list)
@@ -193,7 +207,18 @@ class AdminServer:
                 f"trains = {trains!r} is not allowed: expected 'all' or a list of train ids "
                 "in [1, 4294967295]"
             )
-        return list(dict.fromkeys(trains))
+        ids = list(dict.fromkeys(trains))
+        keys = self.ground.keys
+        if self.ground.config.require_auth and keys is not None:
+            # Such a train can never pass the MAC check, so it can never register and a
+            # delivery would wait for it forever: refuse the whole request instead.
+            keyless = [t for t in ids if keys.active(t) is None]
+            if keyless:
+                raise AdminError(
+                    f"trains = {keyless!r} is not allowed: expected train ids that have a key "
+                    "in the server's key file (authentication is on)"
+                )
+        return ids
 
 
 def _line(obj: dict[str, Any]) -> bytes:

@@ -11,6 +11,8 @@ What the server adds on top of the core:
 * the current connection per registered train (a train that registers on a new connection
   while an old one is still open gets the old one closed: the old one is a half-dead link
   the train has already given up on);
+* ``status()``: per train whether a connection is open (``connected``, also while the train
+  is deregistered and only heartbeats flow) and that connection's ground endpoint state;
 * a :class:`TrainView` per train: registrations, the latest running info and when it came;
 * deliveries for trains that are offline go into their record and leave on the next
   registration (the core re-sends everything pending then);
@@ -22,6 +24,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import itertools
 import logging
 import socket
 import time
@@ -107,11 +110,15 @@ class TrainView:
     acks: Counter[str] = field(default_factory=Counter)
 
 
+_SERIAL = itertools.count(1)
+
+
 class GroundConnection(asyncio.Protocol):
     """One accepted TCP connection: feeds the endpoint, writes its output, routes events."""
 
     def __init__(self, server: GroundServer) -> None:
         self.server = server
+        self.serial = next(_SERIAL)  # accept order: the newest connection of a train wins
         self.endpoint = GroundEndpoint(server.config, server.keys, server.records)
         self.transport: asyncio.Transport | None = None
         self.peer = "?"
@@ -398,20 +405,40 @@ class GroundServer:
             [self._closed_counters] + [c.endpoint.counters for c in self._connections]
         )
 
+    def open_connections(self) -> dict[int, GroundConnection]:
+        """Train id -> its open connection, whatever the registration state.
+
+        A connection belongs to a train from its first accepted frame on. The registered
+        connection wins; otherwise the newest (an old one is about to be closed).
+        """
+        found: dict[int, GroundConnection] = {}
+        for conn in sorted(self._connections, key=lambda c: c.serial):
+            train_id = conn.endpoint.train_id
+            if train_id is not None and conn.open:
+                found[train_id] = conn
+        for train_id, conn in self.live.items():
+            if conn.open and conn.endpoint.train_id == train_id:
+                found[train_id] = conn
+        return found
+
     def status(self) -> dict[str, Any]:
-        """JSON-ready snapshot: per train registration, running info and deliveries."""
+        """JSON-ready snapshot: per train link, registration, running info and deliveries."""
         now = time.time()
         trains = []
+        connections = self.open_connections()
         for train_id in sorted(self.records):
             record = self.records[train_id]
             view = self.views.get(train_id, TrainView(train_id))
-            conn = self.live.get(train_id)
+            conn = connections.get(train_id)
             info = view.running_info
             reg = record.registration
             trains.append(
                 {
                     "train_id": train_id,
-                    "connected": conn is not None and conn.open,
+                    # The TCP connection is open (also while deregistered: heartbeats flow).
+                    "connected": conn is not None,
+                    # Ground endpoint state of that connection (protocol.md 8.2), None if none.
+                    "state": None if conn is None else conn.endpoint.state.name,
                     "registered": record.registered,
                     "registrations": view.registrations,
                     "peer": view.peer,
