@@ -21,16 +21,14 @@ from typing import Any
 from railpilot.brakes.lag_delay import pade_difference
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.reproduce.base import Reproduction, Table
-from railpilot.reproduce.realism_study import ladder_table, run_ladder
+from railpilot.reproduce.realism_study import ladder_table, on_a_real_train, run_ladder
 from railpilot.reproduce.tuning_search import pid_params
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.batch import MonteCarloResult, run_montecarlo
 from railpilot.sim.disturbance import Disturbance, Region
-from railpilot.sim.realism import Realism
 from railpilot.sim.reference import constant_deceleration
 from railpilot.sim.run import simulate
-from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.train import Train
 
 CONTROLLERS = ("pid", "qsmc")
@@ -85,22 +83,7 @@ def random_disturbance(scenario: Scenario) -> Scenario:
 
 def realistic_scenario() -> Scenario:
     """The paper's stop on a real train (values and sources in docs/paper-002-qsmc.md)."""
-    base = random_disturbance(paper_scenario())
-    stop = base.reference.stop_m
-    real = replace(
-        base,
-        name="paper002-realistic",
-        line=Line(gradients=(Segment(stop - 200.0, stop + 50.0, -3.0),)),
-        realism=Realism(
-            speed_noise_std_mps=0.03,
-            speed_resolution_mps=0.01,
-            slide_slip=0.1,
-            balises_m=(stop - 150.0, stop - 30.0, stop - 5.0),
-            slide_ratio=0.9,
-            notches=7,
-        ),
-        sim=replace(base.sim, control_period_s=0.2),
-    )
+    real = on_a_real_train(random_disturbance(paper_scenario()), "paper002-realistic", notches=7)
     # both controllers are tuned for the slower ATO cycle (QSMC's rule does it itself)
     pid = pid_params(real, **PID_TUNING)
     return replace(real, controller=ControllerSpec("qsmc", {"pid": pid}))

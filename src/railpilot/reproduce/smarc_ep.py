@@ -21,16 +21,14 @@ from typing import Any
 
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.reproduce.base import Reproduction, Table
-from railpilot.reproduce.realism_study import ladder_table, run_ladder
+from railpilot.reproduce.realism_study import ladder_table, on_a_real_train, run_ladder
 from railpilot.scenario.model import ATOModel, Scenario
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.batch import MonteCarloResult, run_montecarlo
 from railpilot.sim.disturbance import Disturbance, Region
-from railpilot.sim.realism import Realism
 from railpilot.sim.result import SimResult
 from railpilot.sim.run import simulate
 from railpilot.units import kmh_to_mps
-from railpilot.vehicle.line import Line, Segment
 
 CONTROLLERS = ("pid", "smarc")
 REALISTIC_RUNS = 1000
@@ -88,21 +86,7 @@ def realistic_scenario() -> Scenario:
     odometer's wheel error vary per run (realistic_spec). The EP brake stays stepless, as
     metro brake demands are (a PWM or analogue train line, not notches).
     """
-    paper = paper_scenario()
-    stop = paper.reference.stop_m
-    return replace(
-        paper,
-        name="paper000-realistic",
-        line=Line(gradients=(Segment(stop - 200.0, stop + 50.0, -3.0),)),
-        realism=Realism(
-            speed_noise_std_mps=0.03,
-            speed_resolution_mps=0.01,
-            slide_slip=0.1,
-            balises_m=(stop - 150.0, stop - 30.0, stop - 5.0),
-            slide_ratio=0.9,
-        ),
-        sim=replace(paper.sim, control_period_s=0.2),
-    )
+    return on_a_real_train(paper_scenario(), "paper000-realistic")
 
 
 def realistic_spec(runs: int = REALISTIC_RUNS) -> MonteCarloSpec:
