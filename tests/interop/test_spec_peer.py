@@ -685,8 +685,9 @@ def test_status_connected_while_deregistered_link_is_up(ground: Ground) -> None:
         train = ground.train(1006)
         assert train["connected"] is True and train["state"] == "DEREGISTERED"
         assert train["registered"] is False
-        # protocol.md 7: the held running info is kept as it was at deregistration
-        assert train["running_info"]["valid"] is True
+        # the last position is kept but no longer valid: the train is not managed
+        assert train["running_info"]["valid"] is False
+        assert train["running_info"]["timed_out"] is False
     finally:
         p.close()
     train = ground.poll(lambda: (t := ground.train(1006)) and not t["connected"] and t, "closed")
@@ -712,6 +713,7 @@ def test_periodic_timeout_closes_link_and_invalidates_running_info(ground: Groun
         assert 3.5 < elapsed < 6.0
         train = ground.poll(lambda: (t := ground.train(1005)) and not t["connected"] and t, "")
         assert train["running_info"]["valid"] is False
+        assert train["running_info"]["timed_out"] is True
         after = ground.status()["counters"]
         assert delta(before, after, "timeouts") >= 1
         assert delta(before, after, "link_failures") == 1

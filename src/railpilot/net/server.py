@@ -452,7 +452,12 @@ class GroundServer:
                         "speed_kmh": round(info.speed_mps * 3.6, 2),
                         "direction": info.direction.name,
                         "age_s": round(now - (view.running_info_at_s or now), 3),
-                        "valid": record.running_info.valid,
+                        # a dispatcher must not take a position for live when the train
+                        # is no longer managed or no longer connected, whatever its age
+                        "valid": record.running_info.valid
+                        and conn is not None
+                        and record.registered,
+                        "timed_out": not record.running_info.valid,
                         "count": view.running_info_count,
                     },
                     "time_offset_s": record.time_offset_s,
