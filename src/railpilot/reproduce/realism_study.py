@@ -129,3 +129,46 @@ def ladder_table(rows: list[dict[str, Any]], controllers: tuple[str, ...]) -> Ta
         body,
         note=f"{runs} runs per cell, the same plant samples and seeds in every row.",
     )
+
+
+def by_distance(scenario: Scenario) -> Scenario:
+    """``scenario`` with the ATO re-planning on distance to go (``ato.reference``)."""
+    return replace(scenario, ato=replace(scenario.ato, reference="distance"))
+
+
+def stats_table(title: str, stats: dict[str, dict[str, Any]]) -> Table:
+    """Stop-error statistics of a Monte Carlo per controller, one row each."""
+    return Table(
+        title,
+        [
+            "controller",
+            "runs",
+            "mean [m]",
+            "std [m]",
+            "p95 |err| [m]",
+            "p99 [m]",
+            "max [m]",
+            "within ±0.30 m",
+            "not stopped",
+            "max jerk [m/s³]",
+            "worst run seed",
+        ],
+        [
+            [
+                name.upper(),
+                st["runs"],
+                st["mean_stop_error_m"],
+                st["std_stop_error_m"],
+                st["p95_abs_stop_error_m"],
+                st["p99_abs_stop_error_m"],
+                st["max_abs_stop_error_m"],
+                f"{st['share_within_0_30_m']:.1%}",
+                st["not_stopped"],
+                st["max_jerk_mps3"],
+                st["worst_run_seed"],
+            ]
+            for name, st in stats.items()
+        ],
+        note="max is empty when a run did not stop within the simulated time (a braking-only "
+        "ATO cannot pull a train that stopped short of the point).",
+    )

@@ -23,7 +23,8 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              coast_s, ease_out
     [disturbance]  constant_kn, random_std_kn, random_hold_s, target_fraction, seed,
              regions = [{start_km, end_km, force_kn | accel_mps2}]
-    [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s
+    [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s,
+             reference = "time" | "distance"
     [controller]  name = "pid" | "smarc" | "qsmc"; [controller.NAME] its parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
     [realism]  speed_noise_std_mps, speed_resolution_mps, wheel_scale_error, slide_slip,
@@ -450,6 +451,7 @@ def _ato(t: _Table) -> ATOModel:
             davis=t.numbers("davis", 3),  # type: ignore[arg-type]
             brake_delay_s=t.optional_number("brake_delay_s"),
             brake_lag_s=t.optional_number("brake_lag_s"),
+            reference=t.string("reference", "time", ("time", "distance")),
         ),
     )
     t.done()

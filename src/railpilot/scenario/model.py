@@ -35,16 +35,24 @@ class ATOModel:
         The ATO's model of the brake's delay and time constant [s] (the air path of an
         EP brake): the tuning rules use them and the reference acceleration is fed
         forward by their sum. None = the plant's true value.
+    reference
+        ``"time"`` (default, as the papers): the controllers track the curve as a
+        function of time since the braking point. ``"distance"``: the ATO looks the curve
+        up at the measured position (distance to go), as production ATOs do, so a train
+        that falls behind is not chased by a reference running away from it.
     """
 
     mass_kg: float | None = None
     davis: tuple[float, float, float] | None = None
     brake_delay_s: float | None = None
     brake_lag_s: float | None = None
+    reference: str = "time"
 
     def __post_init__(self) -> None:
         if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
             raise ConfigError("ato.mass_kg", self.mass_kg, "a finite mass > 0")
+        if self.reference not in ("time", "distance"):
+            raise ConfigError("ato.reference", self.reference, "'time' or 'distance'")
         for name in ("brake_delay_s", "brake_lag_s"):
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value >= 0):

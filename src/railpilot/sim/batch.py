@@ -28,7 +28,7 @@ from numba import njit, prange
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.control.base import Controller
 from railpilot.errors import ConfigError
-from railpilot.scenario.model import ATOModel, Scenario
+from railpilot.scenario.model import Scenario
 from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.sim import engine
 from railpilot.sim.run import KernelInputs, ato_brake_model, make_controller, metrics_dict
@@ -120,9 +120,7 @@ def freeze_ato(scenario: Scenario) -> Scenario:
     delay, lag = ato_brake_model(scenario)
     return replace(
         scenario,
-        ato=ATOModel(
-            mass_kg=scenario.ato.mass_kg, davis=davis, brake_delay_s=delay, brake_lag_s=lag
-        ),
+        ato=replace(scenario.ato, davis=davis, brake_delay_s=delay, brake_lag_s=lag),
     )
 
 
@@ -170,6 +168,7 @@ def run_batch_kernel(
     ref_v: np.ndarray,
     ref_a: np.ndarray,
     ref_a_ff: np.ndarray,
+    dist_ref: np.ndarray,
     ato: np.ndarray,
     kind: int,
     ctrl_p: np.ndarray,
@@ -204,6 +203,7 @@ def run_batch_kernel(
             ref_v,
             ref_a,
             ref_a_ff,
+            dist_ref,
             ato[i],
             kind,
             ctrl_p,
@@ -290,6 +290,7 @@ def run_chunk(
         base.ref_v,
         base.ref_a,
         base.ref_a_ff,
+        base.dist_ref,
         chunk.ato,
         base.kind,
         base.ctrl_p,

@@ -143,6 +143,7 @@ def run_kernel(
     ref_v: np.ndarray,
     ref_a: np.ndarray,
     ref_a_ff: np.ndarray,
+    dist_ref: np.ndarray,
     ato: np.ndarray,
     kind: int,
     ctrl_p: np.ndarray,
@@ -159,8 +160,11 @@ def run_kernel(
     ``ref_*`` have ``n_steps + 1`` samples; ``ref_a_ff`` is the reference acceleration
     the feed-forward uses (shifted ahead by the ATO's model of the brake's lead).
     ``random_n`` (force [N] per step) and ``speed_noise`` ([m/s] per controller update)
-    may be empty. The controller's state is copied from ``ctrl_s0``, so the inputs are
-    never changed and a batch can share them.
+    may be empty. ``dist_ref`` is empty for a time-based reference, or ``(3, m)``: the
+    curve's position [m], speed [m/s] and fed-forward acceleration [m/s^2] by position,
+    which the ATO then looks up at the measured position (distance to go). The
+    controller's state is copied from ``ctrl_s0``, so the inputs are never changed and a
+    batch can share them.
     """
     ctrl_s = ctrl_s0.copy()
     # a private copy: the PID's limits are moved every update (below), and a batch
@@ -196,6 +200,10 @@ def run_kernel(
         next_balise += 1
     adhesion_n = real[R_ADHESION] * mass * G
     notches = real[R_NOTCHES]
+    by_distance = dist_ref.shape[1] > 0
+    rx = ref_x[0]
+    rv = ref_v[0]
+    raff = ref_a_ff[0]
     for k in range(n_steps):
         t = k * dt
         # the state at time t, recorded with this step's command and forces
@@ -203,7 +211,10 @@ def run_kernel(
         v_t = v
         x_odo_t = x_odo
         if moving:
-            verr = v - ref_v[k]
+            # speed error against what the ATO tracks: the curve at the true position
+            # for a distance-based reference, the curve at time t otherwise
+            v_goal = np.interp(x, dist_ref[0], dist_ref[1]) if by_distance else ref_v[k]
+            verr = v - v_goal
             if abs(verr) > max_verr:
                 max_verr = abs(verr)
             xerr = abs(x - ref_x[k])
@@ -215,6 +226,15 @@ def run_kernel(
                 verr_co = abs(verr)
         # --- controller (ATO cycle), on measured signals
         if k % control_every == 0:
+            if by_distance:
+                # re-planned on distance to go: where the train is, not where it was due
+                rx = x_odo
+                rv = np.interp(x_odo, dist_ref[0], dist_ref[1])
+                raff = np.interp(x_odo, dist_ref[0], dist_ref[2])
+            else:
+                rx = ref_x[k]
+                rv = ref_v[k]
+                raff = ref_a_ff[k]
             wheel_v = v * (1.0 - real[R_SLIDE_SLIP]) if sliding else v
             v_meas = wheel_v * (1.0 + real[R_WHEEL_SCALE])
             if speed_noise.shape[0] > 0:
@@ -235,26 +255,18 @@ def run_kernel(
                 # by the ATO: tell the PID where that clamp is, so its anti-windup sees
                 # the real saturation (a braking-only ATO cannot pull, and an integrator
                 # that wants traction would otherwise wind up and release the brake late)
-                ff = ref_a_ff[k] + r_model
+                ff = raff + r_model
                 ctrl_p[PID_LO] = ato[A_UMIN] - ff
                 ctrl_p[PID_HI] = ato[A_UMAX] - ff
-                v_set = tracking_setpoint(ctrl_p, ref_x[k], ref_v[k], x_odo)
+                v_set = tracking_setpoint(ctrl_p, rx, rv, x_odo)
                 u = ff + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
             elif kind == KIND_SMARC:
-                u = (
-                    smarc_step(
-                        ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas, ctrl_dt
-                    )
-                    + r_model
-                )
+                u = smarc_step(ctrl_p, ctrl_s, rx, rv, raff, x_odo, v_meas, ctrl_dt) + r_model
             else:
                 # QSMC's internal brake model is fed the reference acceleration the ATO
                 # wants delivered one lead from now, so its predicted reference error
                 # sees a braking point coming (with ref_a[k] it starts one lead late)
-                u = (
-                    _qsmc(ctrl_p, ctrl_s, ref_x[k], ref_v[k], ref_a_ff[k], x_odo, v_meas, ctrl_dt)
-                    + r_model
-                )
+                u = _qsmc(ctrl_p, ctrl_s, rx, rv, raff, x_odo, v_meas, ctrl_dt) + r_model
             u = min(max(u, ato[A_UMIN]), ato[A_UMAX])
             if notches > 0.0:
                 # brake commands in notches: the nearest one to the wanted command
@@ -338,9 +350,9 @@ def run_kernel(
                 record[r, 1] = x_t
                 record[r, 2] = v_t
                 record[r, 3] = a
-                record[r, 4] = ref_x[k]
-                record[r, 5] = ref_v[k]
-                record[r, 6] = ref_a[k]
+                record[r, 4] = rx if by_distance else ref_x[k]
+                record[r, 5] = rv if by_distance else ref_v[k]
+                record[r, 6] = raff if by_distance else ref_a[k]
                 record[r, 7] = u
                 record[r, 8] = demand
                 record[r, 9] = e_n

@@ -204,6 +204,7 @@ class KernelInputs:
     ref_v: np.ndarray
     ref_a: np.ndarray
     ref_a_ff: np.ndarray
+    dist_ref: np.ndarray
     ato: np.ndarray
     kind: int
     ctrl_p: np.ndarray
@@ -226,6 +227,22 @@ def feed_forward_acceleration(ref: BrakingCurve, t: np.ndarray, lead_s: float) -
     _, _, (a_final,) = ref.sample(np.array([end - 1e-9]))
     holding = (t < end) & (t + lead_s >= end)
     return np.where(holding, np.minimum(a_ahead, a_final), a_ahead)
+
+
+def distance_table(ref: BrakingCurve, dt: float, lead_s: float) -> np.ndarray:
+    """The braking curve by position: ``[x, v(x), fed-forward a(x)]`` rows, x increasing.
+
+    For a distance-based reference the ATO looks these up at the measured position.
+    Sampled at the simulation step over the curve's moving part; the fed-forward
+    acceleration at a position is the one the time-based ATO would command when the
+    reference passes it (``feed_forward_acceleration``), and beyond the stop point the
+    last row holds (at rest, braking with the final deceleration).
+    """
+    t = np.arange(0.0, ref.duration_s + dt, dt)
+    x, v, _ = ref.sample(t)
+    a_ff = feed_forward_acceleration(ref, t, lead_s)
+    keep = np.concatenate(([True], np.diff(x) > 0))  # interp needs increasing positions
+    return np.vstack([x[keep], v[keep], a_ff[keep]])
 
 
 def pack_brake(scenario: Scenario, load_weighed_eff_mass_kg: float) -> tuple[int, np.ndarray]:
@@ -257,17 +274,23 @@ def prepare(
     n = sim.n_steps
     ref = scenario.reference
     if reference is not None:
-        ref_x, ref_v, ref_a, ref_a_ff = (
+        ref_x, ref_v, ref_a, ref_a_ff, dist_ref = (
             reference.ref_x,
             reference.ref_v,
             reference.ref_a,
             reference.ref_a_ff,
+            reference.dist_ref,
         )
     else:
         t = np.arange(n + 1) * dt
         ref_x, ref_v, ref_a = ref.sample(t)
         delay, lag = ato_brake_model(scenario)
         ref_a_ff = feed_forward_acceleration(ref, t, delay + lag)
+        dist_ref = (
+            distance_table(ref, dt, delay + lag)
+            if scenario.ato.reference == "distance"
+            else np.zeros((3, 0))
+        )
     ato = scenario.ato
     mass_lw = ato.mass_kg if ato.mass_kg is not None else train.mass_kg
     davis = ato.davis if ato.davis is not None else (train.davis_a0, train.davis_a1, train.davis_a2)
@@ -320,6 +343,7 @@ def prepare(
         ref_v=ref_v,
         ref_a=ref_a,
         ref_a_ff=ref_a_ff,
+        dist_ref=dist_ref,
         ato=ato_arr,
         kind=kind,
         ctrl_p=controller.params.copy(),
@@ -353,6 +377,7 @@ def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np
         inp.ref_v,
         inp.ref_a,
         inp.ref_a_ff,
+        inp.dist_ref,
         inp.ato,
         inp.kind,
         inp.ctrl_p,
