@@ -180,7 +180,7 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
             real_results,
             out_dir / "qsmc_stop_realistic_histogram.png",
             TOLERANCE_M,
-            title=f"Realistic variant: {runs} runs",
+            title=f"Paper 002 on a real train, time-based reference: {runs} runs per controller",
         ),
     ]
     results = {

@@ -189,7 +189,7 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
         montecarlo_plots.stop_error_histogram(
             real,
             out_dir / "smarc_ep_realistic_histogram.png",
-            title=f"Paper 000 on a real train: {runs} runs per controller",
+            title=f"Paper 000 on a real train, time-based reference: {runs} runs per controller",
         ),
     ]
     real_stats = {name: _public_stats(r) for name, r in real.items()}
