@@ -12,12 +12,14 @@ import argparse
 import asyncio
 import contextlib
 import logging
+import math
 import signal
 import sys
 from pathlib import Path
 from typing import Any
 
 from railpilot.commands._common import log, print_json
+from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.link.errors import LinkConfigError
 
 DEFAULT_PORT = 7400
@@ -166,6 +168,13 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
         type=int,
         default=DEFAULT_ADMIN_PORT,
         help=f"admin port on 127.0.0.1, -1 = none [{DEFAULT_ADMIN_PORT}]",
+    )
+    p.add_argument(
+        "--replay-window-s",
+        type=float,
+        default=REPLAY_WINDOW_S,
+        help="frames timestamped more than this before the server started are refused as "
+        f"replays (allowance for trains' clocks lagging the ground's) [{REPLAY_WINDOW_S:g}]",
     )
     p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
     _add_log_level(p)
@@ -347,11 +356,15 @@ def _ground_serve(args: argparse.Namespace) -> int:
         raise LinkConfigError("--port", args.port, "0..65535")
     if args.admin_port != -1 and not 0 <= args.admin_port <= 65535:
         raise LinkConfigError("--admin-port", args.admin_port, "0..65535, or -1 = none")
+    if not (math.isfinite(args.replay_window_s) and 0 <= args.replay_window_s <= 3600):
+        raise LinkConfigError("--replay-window-s", args.replay_window_s, "0..3600 s")
     _log_level(args)
 
     async def main() -> None:
         stop = await _stop_on_signals()
-        server = GroundServer(config, keys, host=args.host, port=args.port)
+        server = GroundServer(
+            config, keys, host=args.host, port=args.port, replay_window_s=args.replay_window_s
+        )
         await server.start()
         admin = None
         if args.admin_port != -1:

@@ -130,6 +130,11 @@ class OnboardConfig:
         _check_number("train_length_m", self.train_length_m, 0.0, 10_000.0)
 
 
+#: Default allowance [s] for trains' clocks lagging the ground's when a freshly started
+#: ground refuses frames timestamped before its start (``GroundConfig.not_before_s``).
+REPLAY_WINDOW_S = 10.0
+
+
 @dataclass(frozen=True, slots=True)
 class GroundConfig:
     """Identity and settings of the ground front server (one endpoint per connection)."""
@@ -140,8 +145,13 @@ class GroundConfig:
     accepted_trains: frozenset[int] | None = None
     timers: LinkTimers = field(default_factory=LinkTimers)
     max_frame_length: int = DEFAULT_MAX_FRAME_LENGTH
+    #: Epoch time [s] before which no frame can be genuine (the server's start less a
+    #: clock allowance); a new train record refuses older frames as replays. 0 = none.
+    not_before_s: float = 0.0
 
     def __post_init__(self) -> None:
         _check_common("ground", self.ground_id, self.max_frame_length, self.timers)
+        if not (math.isfinite(self.not_before_s) and self.not_before_s >= 0):
+            raise LinkConfigError("not_before_s", self.not_before_s, "epoch seconds >= 0")
         if self.accepted_trains is not None and not isinstance(self.accepted_trains, frozenset):
             raise LinkConfigError("accepted_trains", self.accepted_trains, "a frozenset or None")

@@ -298,6 +298,7 @@ class GroundEndpoint(Endpoint):
         record = self.records.get(train_id)
         if record is None:
             record = self.records[train_id] = TrainRecord(train_id)
+            record.history.not_before_us = round(self.config.not_before_s * 1e6)
         return record
 
     @property

@@ -74,6 +74,10 @@ class PeerHistory:
 
     last_timestamp_us: dict[int, int] = field(default_factory=dict)
     newest_timestamp_us: int = 0
+    #: Frames timestamped at or before this are refused whatever their type: a ground that
+    #: has just started has received nothing earlier, so such a frame is a replay of a
+    #: recording made before the restart (0 = no floor).
+    not_before_us: int = 0
     #: Newest timestamp we sent to this peer: our timestamps keep rising across
     #: connections (and across ground endpoints of one train), so the peer's per-type
     #: "newer than last" rule never drops a good frame after a quick reconnect.
@@ -223,6 +227,11 @@ class SecureChannel:
             raise TimestampError(
                 f"timestamp {frame.timestamp_us} us not newer than {last} us for "
                 f"{MessageType(mtype).name}"
+            )
+        if frame.timestamp_us <= history.not_before_us:
+            raise TimestampError(
+                f"timestamp {frame.timestamp_us} us is before the receiver started "
+                f"({history.not_before_us} us, less the replay window): a replayed frame"
             )
         echo = frame.echo_timestamp_us
         if echo:

@@ -30,7 +30,7 @@ import socket
 import time
 from collections import Counter
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any
 
 from railpilot.link import (
@@ -59,6 +59,7 @@ from railpilot.link import (
     TsrRefusedByTrain,
     TsrSet,
 )
+from railpilot.link.config import REPLAY_WINDOW_S
 
 from .logfmt import kv
 from .timers import TickScheduler
@@ -216,8 +217,10 @@ class GroundServer:
         port: int = 0,
         scheduler: TickScheduler | None = None,
         backlog: int = 1024,
+        replay_window_s: float = REPLAY_WINDOW_S,
     ) -> None:
         self.config = config
+        self.replay_window_s = replay_window_s
         self.keys = keys
         self.host = host
         self.port = port
@@ -238,6 +241,11 @@ class GroundServer:
     async def start(self) -> tuple[str, int]:
         """Start listening; returns the bound ``(host, port)`` (port 0 = ephemeral)."""
         loop = asyncio.get_running_loop()
+        # Nothing sent before this process started can be genuine: frames timestamped
+        # earlier (less an allowance for the trains' clock offset and transit) are replays
+        # of recordings made before a restart (protocol.md 5.2).
+        if self.config.not_before_s == 0.0:
+            self.config = replace(self.config, not_before_s=time.time() - self.replay_window_s)
         self._server = await loop.create_server(
             lambda: GroundConnection(self), self.host, self.port, backlog=self.backlog
         )
@@ -311,6 +319,7 @@ class GroundServer:
             created = record is None
             if record is None:
                 record = self.records[train_id] = TrainRecord(train_id)
+                record.history.not_before_us = round(self.config.not_before_s * 1e6)
             try:
                 apply(record, now)
             except LinkError:
