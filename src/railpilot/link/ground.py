@@ -78,7 +78,8 @@ class GroundInput(Enum):
     RECV_REGISTER_ACCEPTED = "register (accepted)"
     RECV_REGISTER_REFUSED = "register (refused)"
     RECV_DEREGISTER = "deregister"
-    RECV_DATA = "data"  # running info, planned curve, offset report, acknowledgements
+    RECV_DATA = "data"  # running info, planned curve, offset report
+    RECV_ACK = "acknowledgement"  # of a TSR set/cancel, target point or dispatch command
     RECV_HEARTBEAT = "heartbeat"
 
 
@@ -94,7 +95,11 @@ TRANSITIONS: Mapping[tuple[GroundState, GroundInput], GroundState] = {
     (_G.REGISTERED, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,  # our response was lost
     (_G.REGISTERED, _GI.RECV_DEREGISTER): _G.DEREGISTERED,
     (_G.REGISTERED, _GI.RECV_DATA): _G.REGISTERED,
+    (_G.REGISTERED, _GI.RECV_ACK): _G.REGISTERED,
     (_G.REGISTERED, _GI.SEND): _G.REGISTERED,
+    # an acknowledgement answers our own request: one that crossed the train's
+    # DEREGISTER_REQUEST still closes the delivery (else it would show pending forever)
+    (_G.DEREGISTERED, _GI.RECV_ACK): _G.DEREGISTERED,
     (_G.DEREGISTERED, _GI.RECV_DEREGISTER): _G.DEREGISTERED,  # our confirmation was lost
     (_G.DEREGISTERED, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,
     (_G.DEREGISTERED, _GI.RECV_REGISTER_REFUSED): _G.DEREGISTERED,
@@ -451,7 +456,9 @@ class GroundEndpoint(Endpoint):
             if before is not GroundState.DEREGISTERED:
                 self._events.append(TrainDeregistered(record.train_id, message.reason))
         else:
-            self.state = transition(TRANSITIONS, self.state, _GI.RECV_DATA, remote=True)
+            is_ack = isinstance(message, TsrSetAck | TsrCancelAck | DispatchAck | TargetPointAck)
+            trigger = _GI.RECV_ACK if is_ack else _GI.RECV_DATA
+            self.state = transition(TRANSITIONS, self.state, trigger, remote=True)
             self._on_data(frame, message, now_s)
 
     def _on_register(self, request: RegisterRequest, now_s: float) -> None:
