@@ -22,10 +22,12 @@ from railpilot.brakes.lag_delay import pade_difference
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.reproduce.base import Reproduction, Table
 from railpilot.reproduce.realism_study import (
-    by_distance,
     ladder_table,
     on_a_real_train,
+    public_stats,
+    run_both_references,
     run_ladder,
+    shares_text,
     stats_table,
 )
 from railpilot.reproduce.tuning_search import pid_params
@@ -145,13 +147,7 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
             sweep.append(_sweep_row(sigma, name, result))
     realistic = realistic_scenario()
     real_spec = realistic_spec(runs)
-    real_results = {
-        name: run_montecarlo(realistic, name, real_spec, progress=False) for name in CONTROLLERS
-    }
-    real_distance = {
-        name: run_montecarlo(by_distance(realistic), name, real_spec, progress=False)
-        for name in CONTROLLERS
-    }
+    real_results, real_distance = run_both_references(realistic, real_spec, CONTROLLERS)
     ladder = run_ladder(realistic, realistic_spec(max(runs // 2, 1)), 0.01, CONTROLLERS)
     wall_s = time.perf_counter() - started
 
@@ -198,8 +194,8 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
         }
         for name, r in single.items()
     }
-    realistic_stats = {name: _public_stats(r) for name, r in real_results.items()}
-    distance_stats = {name: _public_stats(r) for name, r in real_distance.items()}
+    realistic_stats = {name: public_stats(r) for name, r in real_results.items()}
+    distance_stats = {name: public_stats(r) for name, r in real_distance.items()}
     pade = [
         {
             "sigma_s": s,
@@ -221,9 +217,7 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
     findings = _findings(results, sweep, realistic_stats)
     findings.append(
         "Realistic variant with the ATO re-planning on distance to go: within ±0.30 m "
-        + ", ".join(
-            f"{n.upper()} {st['share_within_0_30_m']:.1%}" for n, st in distance_stats.items()
-        )
+        + shares_text(distance_stats)
         + "."
     )
     payload = {
@@ -241,12 +235,6 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
     return Reproduction(
         "qsmc-stop", "Paper 002 — QSMC vs PID, precise stopping", payload, tables, figures, findings
     )
-
-
-def _public_stats(result: MonteCarloResult) -> dict[str, Any]:
-    stats = result.stats(TOLERANCE_M)
-    stats.pop("worst_run_metrics")
-    return stats
 
 
 def _tables(
@@ -370,11 +358,10 @@ def _findings(
         f"{p['stop_error_m']:+.3f} m; max position error QSMC "
         f"{q['max_position_error_m']:.3f} m, PID {p['max_position_error_m']:.3f} m."
     )
-    shares = {n: s["share_within_0_30_m"] for n, s in realistic.items()}
-    best = max(shares, key=lambda n: shares[n])
+    best = max(realistic, key=lambda n: realistic[n]["share_within_0_30_m"])
     out.append(
         "Realistic variant: share of stops within ±0.30 m "
-        + ", ".join(f"{n.upper()} {v:.1%}" for n, v in shares.items())
+        + shares_text(realistic)
         + f"; best {best.upper()}."
     )
     return out

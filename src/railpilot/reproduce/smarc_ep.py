@@ -22,15 +22,16 @@ from typing import Any
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.reproduce.base import Reproduction, Table
 from railpilot.reproduce.realism_study import (
-    by_distance,
     ladder_table,
     on_a_real_train,
+    public_stats,
+    run_both_references,
     run_ladder,
+    shares_text,
     stats_table,
 )
 from railpilot.scenario.model import ATOModel, Scenario
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
-from railpilot.sim.batch import MonteCarloResult, run_montecarlo
 from railpilot.sim.disturbance import Disturbance, Region
 from railpilot.sim.result import SimResult
 from railpilot.sim.run import simulate
@@ -84,14 +85,8 @@ def paper_scenario() -> Scenario:
 
 
 def realistic_scenario() -> Scenario:
-    """The paper case on a real train: the effects of sim/realism.py switched on.
-
-    Speed noise 0.03 m/s and 0.01 m/s resolution, odometry from the wheels (a sliding
-    wheel reads 10 % slow) reset by balises 150 m, 30 m and 5 m before the stop point, a
-    0.2 s ATO cycle, a -3 per mille approach over the last 200 m; the adhesion and the
-    odometer's wheel error vary per run (realistic_spec). The EP brake stays stepless, as
-    metro brake demands are (a PWM or analogue train line, not notches).
-    """
+    """The paper case on a real train (realism_study.on_a_real_train; the EP brake stays
+    stepless, as metro brake demands are). What varies per run: realistic_spec."""
     return on_a_real_train(paper_scenario(), "paper000-realistic")
 
 
@@ -168,16 +163,9 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
     paper_runs = {name: simulate(paper, name) for name in CONTROLLERS}
     nominal_runs = {name: simulate(nominal, name) for name in CONTROLLERS}
     sweep = _sweep(paper)
-    real = {
-        name: run_montecarlo(realistic_scenario(), name, realistic_spec(runs), progress=False)
-        for name in CONTROLLERS
-    }
-    real_distance = {
-        name: run_montecarlo(
-            by_distance(realistic_scenario()), name, realistic_spec(runs), progress=False
-        )
-        for name in CONTROLLERS
-    }
+    real, real_distance = run_both_references(
+        realistic_scenario(), realistic_spec(runs), CONTROLLERS
+    )
     ladder = run_ladder(realistic_scenario(), realistic_spec(max(runs // 2, 1)), 0.01, CONTROLLERS)
     wall_s = time.perf_counter() - started
     changeover = kmh_to_mps(paper.changeover_kmh)
@@ -192,8 +180,8 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
             title=f"Paper 000 on a real train, time-based reference: {runs} runs per controller",
         ),
     ]
-    real_stats = {name: _public_stats(r) for name, r in real.items()}
-    real_distance_stats = {name: _public_stats(r) for name, r in real_distance.items()}
+    real_stats = {name: public_stats(r) for name, r in real.items()}
+    real_distance_stats = {name: public_stats(r) for name, r in real_distance.items()}
     results = {name: _metrics(r) for name, r in paper_runs.items()}
     table2 = Table(
         "Paper 000 Table 2 reproduced (with the paper's uncertainties)",
@@ -268,16 +256,13 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
         real_distance_stats,
     )
     findings = _findings(results, nominal_runs, sweep, limit)
-    shares = {n: st["share_within_0_30_m"] for n, st in real_stats.items()}
     findings.append(
         "On a real train (realistic variant): stops within ±0.30 m "
-        + ", ".join(f"{n.upper()} {v:.1%}" for n, v in shares.items())
+        + shares_text(real_stats)
         + f"; p99 |stop error| PID {real_stats['pid']['p99_abs_stop_error_m']:.3f} m, SMARC "
         f"{real_stats['smarc']['p99_abs_stop_error_m']:.3f} m (time-based reference, as "
         "the paper). With the ATO re-planning on distance to go: "
-        + ", ".join(
-            f"{n.upper()} {st['share_within_0_30_m']:.1%}" for n, st in real_distance_stats.items()
-        )
+        + shares_text(real_distance_stats)
         + "."
     )
     payload = {
@@ -315,12 +300,6 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
         figures,
         findings,
     )
-
-
-def _public_stats(result: MonteCarloResult) -> dict[str, Any]:
-    stats = result.stats()
-    stats.pop("worst_run_metrics")
-    return stats
 
 
 def _stop_comparison(pid_m: float, smarc_m: float) -> str:
