@@ -18,7 +18,7 @@ from numba import njit
 
 from railpilot.eddy.torque_model import WHEEL_DIAMETER_M
 from railpilot.errors import ConfigError
-from railpilot.units import G_MPS2, KMH_PER_MPS, Num
+from railpilot.units import G_MPS2, KMH_PER_MPS
 
 T_MASS, T_DW, T_A, T_B, T_C = range(5)
 N_TRAIN = 5
@@ -69,31 +69,13 @@ class TrainParams:
         return asdict(self)
 
 
-def brake_force_n(torque_nm: Num, wheel_diameter_m: float) -> Num:
-    """Brake force at the wheel rim ``Fb = 2 M / Dw`` [N] (eq. 26)."""
-    return 2.0 * torque_nm / wheel_diameter_m
-
-
-def basic_resistance_n(speed_mps: Num, train: TrainParams) -> Num:
-    """Basic running resistance ``Ff = (A + B v + C v^2) m0 g / 1000`` [N], v in km/h.
-
-    Paper 003 eq. 27-28.
-    """
-    v_kmh = np.abs(speed_mps) * KMH_PER_MPS
-    w0 = train.resistance_a + train.resistance_b * v_kmh + train.resistance_c * v_kmh * v_kmh
-    return w0 * train.axle_mass_kg * G_MPS2 / 1000.0
-
-
-def deceleration_mps2(torque_nm: Num, speed_mps: Num, train: TrainParams) -> Num:
-    """``-dv/dt = (Fb + Ff) / m0`` [m/s^2] (eq. 29)."""
-    return (
-        brake_force_n(torque_nm, train.wheel_diameter_m) + basic_resistance_n(speed_mps, train)
-    ) / train.axle_mass_kg
-
-
 @njit(cache=True)
 def train_step(speed_mps: float, torque_nm: float, train: np.ndarray, dt: float) -> float:
-    """Speed [m/s] one explicit-Euler step later; stops at zero (eq. 29)."""
+    """Speed [m/s] one explicit-Euler step later; stops at zero (eq. 29).
+
+    ``-dv/dt = (Fb + Ff) / m0`` with the rim force ``Fb = 2 M / Dw`` (eq. 26) and the
+    basic resistance ``Ff = (A + B v + C v^2) m0 g / 1000`` (eq. 27-28, v in km/h).
+    """
     if speed_mps <= 0.0:
         return 0.0
     v_kmh = speed_mps * KMH_PER_MPS
