@@ -478,6 +478,9 @@ BODY[0x11] = function(t, b)
     t:add(pf.to_offset_s, b(16, 8), off_s):set_generated()
     if off > MAX_OFFSET_US or off < -MAX_OFFSET_US then
         item:add_proto_expert_info(ex.body, "offset outside -10^12..10^12 us")
+    elseif off ~= b(8, 8):int64() - b(0, 8):int64() then  -- both < 2^63: signed is exact
+        -- section 6.6: the offset is exactly onboard time - ground time
+        item:add_proto_expert_info(ex.body, "offset is not onboard time - ground time")
     end
     return string.format("offset %.6f s", off_s)
 end
@@ -499,10 +502,16 @@ end
 local function list_count(t, b, len, f_count, entry)
     local count = b(0, 1):uint()
     local item = t:add(f_count, b(0, 1))
-    if count > MAX_LIST_ENTRIES or len ~= 1 + entry * count then
+    -- section 5.4 #13: a count the body length contradicts is a length failure; a count
+    -- that fits the body but exceeds the maximum is a body (range) failure
+    if len ~= 1 + entry * count then
         item:add_proto_expert_info(ex.length, string.format(
-            "%d entries need a body of %d bytes, got %d (at most %d entries)",
-            count, 1 + entry * count, len, MAX_LIST_ENTRIES))
+            "%d entries need a body of %d bytes, got %d", count, 1 + entry * count, len))
+        return nil
+    end
+    if count > MAX_LIST_ENTRIES then
+        item:add_proto_expert_info(ex.body, string.format(
+            "%d entries; at most %d allowed", count, MAX_LIST_ENTRIES))
         return nil
     end
     return count

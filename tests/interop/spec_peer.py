@@ -439,9 +439,10 @@ def decode_body(msg_type: int, body: bytes) -> dict[str, Any]:
         size = 10 if msg_type == STATION_STOPS else 12
         if not body:
             raise Rejected("length", "empty list body")
-        k = _range("count", body[0], 0, 64)
-        if len(body) != 1 + size * k:
+        k = body[0]
+        if len(body) != 1 + size * k:  # 5.4 #13: inconsistent with the body is *length*
             raise Rejected("length", "list count inconsistent")
+        _range("count", k, 0, 64)  # a consistent count out of range is *body*
         return {"count": k}
     if msg_type == HEARTBEAT:
         return {}
@@ -525,6 +526,17 @@ class OnboardPeer:
         self.rx_last_ts_by_type: dict[int, int] = {}  # kept across connections (5.2)
         self.echo_us = 0  # newest timestamp accepted from the ground on this connection
         self.ground_hb_at = 0.0
+        # 5.3: first and newest timestamp sent on this connection (a valid echo lies between),
+        # when it started, and whether the ground has echoed us yet (then echo 0 is refused)
+        self.conn_first_tx_ts = 0
+        self.conn_last_tx_ts = 0
+        self.conn_started_us = 0
+        self.ground_echoed = False
+        self.requests_sent = 0  # REGISTER/DEREGISTER_REQUEST copies on this connection
+        self.deregister_reason = DEREG_MANUAL_SHUTDOWN
+        # 5.2: the ground's clock minus ours, from the last TIME_CHECK on this connection
+        self.ground_ahead_us: int | None = None
+        self.max_clock_skew_s = 10.0
 
         # application state
         self.direction = DIR_UNKNOWN
@@ -558,9 +570,15 @@ class OnboardPeer:
             self.rx_next = 0
             self.rx_seen = []
             self.echo_us = 0
+            self.conn_first_tx_ts = self.conn_last_tx_ts = 0
+            self.conn_started_us = now_us()
+            self.ground_echoed = False
+            self.requests_sent = 0
+            self.ground_ahead_us = None
             self.state = "REGISTERING"
             self.ground_hb_at = time.monotonic()
-            self._send_register()
+            # 6.16: a HEARTBEAT (echo 0) opens the connection; REGISTER_REQUEST waits until a
+            # ground frame was accepted, so that it echoes a fresh ground timestamp (5.3)
             self._send(HEARTBEAT, b"")
             self.next_tick = time.monotonic() + self.cycle_s
         self.thread = threading.Thread(target=self._run, name="spec-peer", daemon=True)
@@ -586,14 +604,16 @@ class OnboardPeer:
         """Application registers again on this connection (8.1 DEREGISTERED row)."""
         with self.lock:
             self.state = "REGISTERING"
-            self._send_register()
+            self.requests_sent = 0
+            self._send_request()
 
     def deregister(self, reason: int = DEREG_MANUAL_SHUTDOWN) -> None:
         """Application deregisters (8.1): send DEREGISTER_REQUEST, resent until answered."""
         with self.lock:
             self.state = "DEREGISTERING"
-            self._send(DEREGISTER_REQUEST, body_deregister_request(reason))
-            self.last_register_sent = time.monotonic()
+            self.deregister_reason = reason
+            self.requests_sent = 0
+            self._send_request()
 
     def send_raw(self, wire: bytes) -> None:
         """Write bytes as they are (for negative tests)."""
@@ -623,6 +643,9 @@ class OnboardPeer:
     def _next_ts(self) -> int:
         ts = self.clock.next()
         self.max_tx_ts = max(self.max_tx_ts, ts)
+        if self.conn_first_tx_ts == 0:
+            self.conn_first_tx_ts = ts
+        self.conn_last_tx_ts = ts
         return ts
 
     def _frame_kwargs(self) -> dict[str, Any]:
@@ -673,11 +696,21 @@ class OnboardPeer:
                     raise TimeoutError("socket send blocked") from None
                 select.select([], [self.sock], [], 0.1)
 
-    def _send_register(self) -> None:
-        body = body_register_request(
-            self.train_number, self.loco_number, self.driver_id, self.length_cm
-        )
-        self._send(REGISTER_REQUEST, body)
+    def _send_request(self) -> None:
+        """REGISTER/DEREGISTER_REQUEST of the current state; only once the ground was heard
+        on this connection (5.3: nothing but a HEARTBEAT carries echo 0)."""
+        if self.echo_us == 0:
+            return
+        if self.state == "REGISTERING":
+            body = body_register_request(
+                self.train_number, self.loco_number, self.driver_id, self.length_cm
+            )
+            self._send(REGISTER_REQUEST, body)
+        elif self.state == "DEREGISTERING":
+            self._send(DEREGISTER_REQUEST, body_deregister_request(self.deregister_reason))
+        else:
+            return
+        self.requests_sent += 1
         self.last_register_sent = time.monotonic()
 
     def _send_running_info(self) -> None:
@@ -732,16 +765,10 @@ class OnboardPeer:
             if self.state == "REGISTERED":  # 8.1: none after DEREGISTER_REQUEST
                 self._send_running_info()
             if (
-                self.state == "REGISTERING"
+                self.state in ("REGISTERING", "DEREGISTERING")
                 and now - self.last_register_sent >= self.resend_interval_s
             ):
-                self._send_register()
-            elif (
-                self.state == "DEREGISTERING"
-                and now - self.last_register_sent >= self.resend_interval_s
-            ):
-                self._send(DEREGISTER_REQUEST, body_deregister_request(DEREG_MANUAL_SHUTDOWN))
-                self.last_register_sent = now
+                self._send_request()
             # supervision of the ground heartbeat (section 7); default timeout_cycles = 3
             missed = int((now - self.ground_hb_at) // 1.0)  # the ground's cycle_s = 1 s
             if missed > 3:
@@ -824,14 +851,28 @@ class OnboardPeer:
         if frame.seq < self.rx_next:
             kind = "repetition" if frame.seq in self.rx_seen else "reordering"
             raise Rejected("sequence", kind)
-        # 15 timestamp, per message type
+        # 15 timestamp, per message type, and plausible against our clock (5.2)
         if frame.timestamp_us <= self.rx_last_ts_by_type.get(frame.msg_type, 0):
             raise Rejected("timestamp", "not newer than the last of this type")
-        # 16 delay
-        if frame.echo_us != 0:
-            if frame.echo_us > self.max_tx_ts:
-                raise Rejected("delay", "echo of a timestamp never sent")
-            if now_us() - frame.echo_us > self.max_round_trip_s * 1e6:
+        now = now_us()
+        if self.ground_ahead_us is None:
+            latest = now + self.max_clock_skew_s * 1e6
+        else:
+            latest = now + self.ground_ahead_us + self.max_round_trip_s * 1e6
+        if frame.timestamp_us > latest:
+            raise Rejected("timestamp", "implausibly far ahead of our clock")
+        # 16 delay (5.3)
+        if frame.echo_us == 0:
+            if frame.msg_type != HEARTBEAT:
+                raise Rejected("delay", "echo 0 on a frame other than a HEARTBEAT")
+            if self.ground_echoed:
+                raise Rejected("delay", "echo 0 after the ground has echoed us")
+            if now - self.conn_started_us > self.max_round_trip_s * 1e6:
+                raise Rejected("delay", "echo 0 after the set-up window")
+        else:
+            if not self.conn_first_tx_ts <= frame.echo_us <= self.conn_last_tx_ts:
+                raise Rejected("delay", "echo of a timestamp not sent on this connection")
+            if now - frame.echo_us > self.max_round_trip_s * 1e6:
                 raise Rejected("delay", "echo too old")
         # accepted at link level: consume sequence number and timestamp
         if frame.seq > self.rx_next:
@@ -842,6 +883,7 @@ class OnboardPeer:
         self.rx_seen = [*self.rx_seen[-63:], frame.seq]
         self.rx_last_ts_by_type[frame.msg_type] = frame.timestamp_us
         self.echo_us = max(self.echo_us, frame.timestamp_us)
+        self.ground_echoed = self.ground_echoed or frame.echo_us != 0
         # 17 state
         if not self._allowed(frame.msg_type):
             raise Rejected("state", f"{frame.name} in {self.state}")
@@ -867,6 +909,8 @@ class OnboardPeer:
         t = frame.msg_type
         if t == HEARTBEAT:
             self.ground_hb_at = time.monotonic()
+            if self.requests_sent == 0:  # the ground was heard: the request may go (5.3)
+                self._send_request()
         elif t == REGISTER_RESPONSE:
             result = fields["result"]
             self.register_results.append(result)
@@ -880,6 +924,7 @@ class OnboardPeer:
         elif t == TIME_CHECK:
             onboard = now_us()
             self.time_checks.append((fields["ground_us"], onboard))
+            self.ground_ahead_us = fields["ground_us"] - onboard  # 5.2 plausibility bound
             self._send(TIME_OFFSET_REPORT, body_time_offset_report(fields["ground_us"], onboard))
         elif t == TSR_SET:
             tsr: TsrSet = fields["tsr"]

@@ -598,7 +598,7 @@ def test_reconnect_reconfirms_active_tsr_and_replay_is_rejected(ground: Ground) 
         a.wait_for(lambda: _tsr_sets(a, 30), WAIT, "TSR 30 on A")
         assert a.tsrs[30].zone_cm == (20_000_000 - 60_000, 20_100_000 + 60_000)  # unknown
         ground.poll(lambda: ground.train(1003)["tsrs"].get("30") == "ACTIVE", "TSR 30 ACTIVE")
-        first_wire = a.wire_log[0]  # A's REGISTER_REQUEST, sequence 0
+        first_wire = a.wire_log[0]  # A's opening HEARTBEAT, sequence 0 (6.16)
 
         # a restarted onboard unit (no TSR memory) registers on a new connection
         b.set_running(sp.DIR_UNKNOWN, 0, 20_000_000)
@@ -610,11 +610,14 @@ def test_reconnect_reconfirms_active_tsr_and_replay_is_rejected(ground: Ground) 
         ground.poll(lambda: ground.train(1003)["registrations"] == 2, "2 registrations")
         ground.poll(lambda: ground.train(1003)["tsrs"].get("30") == "ACTIVE", "reconfirmed")
         # 5.1: the new connection numbers from 0 again; 5.2: the ground's timestamps to this
-        # train keep increasing across connections
+        # train keep increasing across connections (they interleave while both are open: the
+        # ground answers B's opening HEARTBEAT before B registers and A is closed)
         with b.lock:
             b_frames = list(b.received)
         assert [f.seq for f in b_frames] == list(range(len(b_frames)))
-        assert min(f.timestamp_us for f in b_frames) > max(f.timestamp_us for f in a.received)
+        registered_at = next(f.timestamp_us for f in b_frames if f.msg_type == sp.REGISTER_RESPONSE)
+        assert registered_at > max(f.timestamp_us for f in a.received)
+        assert not {f.timestamp_us for f in b_frames} & {f.timestamp_us for f in a.received}
 
         # replay A's first frame on a fresh connection: sequence 0 is fine there, the
         # per-type timestamp kept across connections (5.2) is not

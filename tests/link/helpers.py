@@ -104,9 +104,11 @@ class FakeLink:
     """Onboard <-> ground over an in-memory link with a fake clock.
 
     ``segment_seed=None`` delivers each step's bytes in one ``receive_data`` call; an int
-    cuts them into random segments with that seed. On ``LinkFailed`` the link (if
-    ``auto_reconnect``) closes both ends and reconnects after ``reconnect_after_s`` with a
-    fresh ground endpoint that shares the train records, as a real server would.
+    cuts them into random segments with that seed. ``onboard_clock_ahead_s`` sets the
+    onboard's clock that far ahead of the ground's (``now_s`` is the ground's clock). On
+    ``LinkFailed`` the link (if ``auto_reconnect``) closes both ends and reconnects after
+    ``reconnect_after_s`` with a fresh ground endpoint that shares the train records, as a
+    real server would.
     """
 
     keys: KeyStore = field(default_factory=make_keys)
@@ -116,6 +118,7 @@ class FakeLink:
     auto_reconnect: bool = False
     reconnect_after_s: float = 1.0
     now_s: float = T0
+    onboard_clock_ahead_s: float = 0.0
     uplink: FrameFilter = passthrough
     downlink: FrameFilter = passthrough
 
@@ -133,8 +136,15 @@ class FakeLink:
     def _new_ground(self) -> GroundEndpoint:
         return GroundEndpoint(self.ground_cfg, self.keys, self.records)
 
+    @property
+    def onboard_now_s(self) -> float:
+        return self.now_s + self.onboard_clock_ahead_s
+
+    def _clock_of(self, endpoint: OnboardEndpoint | GroundEndpoint) -> float:
+        return self.onboard_now_s if endpoint is self.onboard else self.now_s
+
     def connect(self) -> None:
-        self.onboard.connection_made(self.now_s)
+        self.onboard.connection_made(self.onboard_now_s)
         self.ground.connection_made(self.now_s)
 
     def _deliver(
@@ -143,11 +153,12 @@ class FakeLink:
         if not data or not to.connected:
             return
         wire = b"".join(filt(split_frames(data)))
+        now_s = self._clock_of(to)
         if self.segment_seed is None:
-            to.receive_data(wire, self.now_s)
+            to.receive_data(wire, now_s)
         else:
             for piece in segment(wire, self._rng):
-                to.receive_data(piece, self.now_s)
+                to.receive_data(piece, now_s)
 
     def step(self) -> None:
         """Tick both ends at the current time and carry the bytes both ways."""
@@ -157,8 +168,10 @@ class FakeLink:
             self.grounds.append(self.ground)
             self.connect()
             self.reconnects += 1
-        for _ in range(3):  # a few exchanges so that answers to answers also travel
-            self.onboard.tick(self.now_s)
+        # a few exchanges so that answers to answers also travel (the set-up takes four:
+        # onboard HEARTBEAT, ground HEARTBEAT, REGISTER_REQUEST, REGISTER_RESPONSE)
+        for _ in range(5):
+            self.onboard.tick(self.onboard_now_s)
             self.ground.tick(self.now_s)
             up = self.onboard.data_to_send()
             down = self.ground.data_to_send()
@@ -175,7 +188,7 @@ class FakeLink:
             self.ground_events.append(ev)
             failed |= isinstance(ev, LinkFailed)
         if failed and self.auto_reconnect and self.onboard.connected:
-            self.onboard.connection_lost(self.now_s)
+            self.onboard.connection_lost(self.onboard_now_s)
             self.ground.connection_lost(self.now_s)
             self._reconnect_at = self.now_s + self.reconnect_after_s
 

@@ -135,3 +135,40 @@ def test_every_message_type_code_fits_the_header() -> None:
     # unambiguous (docs/protocol.md section 3).
     assert all(t != HEADER_BYTE for t in MessageType)
     assert wire_frame()[1] == 0x01
+
+
+def test_pending_frame_reports_what_came_of_a_frame_cut_by_the_end_of_input() -> None:
+    wire = wire_frame()  # 39 bytes, no stuffing
+    decoder = FrameDecoder()
+    assert decoder.feed(wire[:20]) == []
+    assert decoder.pending_frame() == (19, 39)  # header byte not counted
+    assert decoder.feed(wire[20:]) == [wire[1:]]  # read-only: the frame still completes
+    assert decoder.pending_frame() is None
+
+
+def test_pending_frame_before_the_length_field_has_no_length() -> None:
+    decoder = FrameDecoder()
+    decoder.feed(wire_frame()[:3])
+    assert decoder.pending_frame() == (2, None)
+    decoder.reset()
+    decoder.feed(b"garbage" + bytes([HEADER_BYTE]))
+    assert decoder.pending_frame() == (0, None)  # a lone header byte at the very end
+
+
+def test_pending_frame_counts_stuffed_pairs_once_and_not_a_dangling_half() -> None:
+    # A frame whose sequence is 0x7E: frame byte 22 is stuffed on the wire.
+    wire = wire_frame(sequence=0x7E)
+    pair = wire.index(b"\x7e\x7e")
+    decoder = FrameDecoder()
+    decoder.feed(wire[: pair + 1])  # ends between the two halves of the pair
+    assert decoder.pending_frame() == (pair - 1, 39)
+    decoder.reset()
+    decoder.feed(wire[: pair + 2])
+    assert decoder.pending_frame() == (pair, 39)
+
+
+def test_no_pending_frame_after_garbage_or_complete_frames() -> None:
+    decoder = FrameDecoder()
+    assert decoder.pending_frame() is None
+    decoder.feed(b"\x00\x7e\x7e\x01" + wire_frame())
+    assert decoder.pending_frame() is None

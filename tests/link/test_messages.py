@@ -185,9 +185,14 @@ MESSAGES: dict[MessageType, st.SearchStrategy] = {  # type: ignore[type-arg]
     MessageType.DEREGISTER_REQUEST: st.builds(DeregisterRequest, enum_of(DeregisterReason)),
     MessageType.DEREGISTER_RESPONSE: st.builds(DeregisterResponse, enum_of(DeregisterResult)),
     MessageType.TIME_CHECK: st.builds(TimeCheck, us),
-    MessageType.TIME_OFFSET_REPORT: st.builds(
-        TimeOffsetReport, us, us, st.integers(-(10**12), 10**12).map(lambda v: v / 1e6)
-    ),
+    # the offset is the difference of the two times (spec 6.6), so it is drawn as one; times
+    # up to 4e15 us (year 2096): beyond 2^32 s a double no longer holds every us of an epoch
+    # time, so the seconds of two such times can differ from their wire values by 1 us
+    MessageType.TIME_OFFSET_REPORT: st.tuples(
+        st.integers(0, 4 * 10**15), st.integers(-(10**12), 10**12)
+    )
+    .filter(lambda t: 0 <= t[0] + t[1] <= 4 * 10**15)
+    .map(lambda t: TimeOffsetReport.from_us(t[0], t[0] + t[1])),
     MessageType.RUNNING_INFO: st.builds(
         RunningInfo, u32, ident, ident, enum_of(TravelDirection), cm_per_s, cm
     ),

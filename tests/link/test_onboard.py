@@ -9,6 +9,7 @@ from railpilot.link import (
     DeregisterReason,
     DispatchCommand,
     DispatchCommandReceived,
+    GroundEndpoint,
     LinkFailed,
     LocalProtocolError,
     MessageReceived,
@@ -56,11 +57,53 @@ def sent_types(frames: list[bytes]) -> list[int]:
     return [header_of(f).message_type for f in frames]
 
 
-def test_first_frame_after_connecting_is_a_register_request() -> None:
+def test_first_frame_is_a_heartbeat_and_registration_waits_for_the_ground() -> None:
+    # protocol.md 6.16: HEARTBEAT (echo 0) first; REGISTER_REQUEST only once a ground frame
+    # was accepted, echoing it (5.3), so a withheld request can never take effect later
     onboard = OnboardEndpoint(onboard_config(), make_keys())
+    ground = GroundEndpoint(ground_config(), make_keys())
     onboard.connection_made(T0)
-    assert sent_types(split_frames(onboard.data_to_send())) == [MessageType.REGISTER_REQUEST]
+    ground.connection_made(T0)
+    first = split_frames(onboard.data_to_send())
+    assert sent_types(first) == [MessageType.HEARTBEAT]
+    assert header_of(first[0]).echo_timestamp_us == 0
+    onboard.tick(T0 + 1.5)  # nothing heard: heartbeats only, however long it waits
+    assert set(sent_types(split_frames(onboard.data_to_send()))) == {MessageType.HEARTBEAT}
+    ground.receive_data(b"".join(first), T0 + 1.5)
+    challenge = ground.data_to_send()
+    assert sent_types(split_frames(challenge)) == [MessageType.HEARTBEAT]
+    onboard.receive_data(challenge, T0 + 1.6)
+    request = split_frames(onboard.data_to_send())
+    assert sent_types(request) == [MessageType.REGISTER_REQUEST]
+    assert (
+        header_of(request[0]).echo_timestamp_us
+        == header_of(split_frames(challenge)[0]).timestamp_us
+    )
     assert onboard.state is OnboardState.REGISTERING
+
+
+def test_no_frame_but_a_heartbeat_ever_carries_echo_zero() -> None:
+    sent: list[bytes] = []
+
+    def record(frames: list[bytes]) -> list[bytes]:
+        sent.extend(frames)
+        return frames
+
+    link = FakeLink(uplink=record, segment_seed=3)
+    link.onboard.update_running_info(running_info(1_000.0))
+    link.connect()
+    link.run(3.0)
+    link.onboard.deregister(DeregisterReason.SHUNTING_MODE, link.now_s)
+    link.run(1.0)
+    headers = [header_of(f) for f in sent]
+    assert {h.message_type for h in headers} >= {
+        MessageType.REGISTER_REQUEST,
+        MessageType.RUNNING_INFO,
+        MessageType.DEREGISTER_REQUEST,
+    }
+    zero_echo = [h for h in headers if h.echo_timestamp_us == 0]
+    # only the opening HEARTBEAT, sent before anything of the ground was heard
+    assert [(h.message_type, h.sequence) for h in zero_echo] == [(MessageType.HEARTBEAT, 0)]
 
 
 def test_accepted_registration_raises_registered_once() -> None:
@@ -265,18 +308,16 @@ def test_tsr_expires_at_the_end_of_its_validity() -> None:
 
 
 def test_tsr_expiry_uses_the_clock_offset_of_the_time_check() -> None:
-    # the time check measures the onboard 10 s ahead of the ground: a TSR valid until
-    # ground time T must stay applied until the onboard's clock reads T + 10 s
-    link = registered_link()
-    ground_time = link.now_s
-    link.ground.send(TimeCheck(ground_time - 10.0), ground_time)
-    link.onboard.receive_data(link.ground.data_to_send(), ground_time)
-    assert link.onboard.time_offset_s == pytest.approx(10.0)
+    # the onboard's clock runs 8 s ahead of the ground's and the time check at registration
+    # measured it: a TSR valid until ground time T stays applied until the onboard's clock
+    # reads T + 8 s, although the onboard's own clock passed T at once
+    link = registered_link(onboard_clock_ahead_s=8.0)
+    assert link.onboard.time_offset_s == pytest.approx(8.0)
     link.ground.set_tsr(TsrSet(1, 500.0, 900.0, 10.0, T0, link.now_s + 2.0), link.now_s)
-    link.run(5.0)  # past valid_until on the onboard's own clock, not on the ground's
+    link.run(1.5)  # past valid_until on the onboard's own clock, not on the ground's
     assert not link.events_of("onboard", TsrExpired)
     assert 1 in link.onboard.active_tsrs
-    link.run(8.0)
+    link.run(1.0)
     assert link.events_of("onboard", TsrExpired) == [TsrExpired(1)]
 
 

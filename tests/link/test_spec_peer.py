@@ -1,7 +1,7 @@
 """An onboard peer written from docs/protocol.md alone talks to our ground endpoint.
 
 The peer below uses only ``struct``, ``zlib`` and ``hmac`` and the layouts of the
-specification (sections 3, 4, 6.1, 6.2, 6.7) - no railpilot encoding code - so a drift
+specification (sections 3, 4, 5.3, 6.1, 6.2, 6.7, 6.16) - no railpilot encoding code - so a drift
 between the specification and the implementation shows up here as a failed handshake.
 """
 
@@ -83,6 +83,10 @@ def test_a_peer_built_from_the_specification_registers_and_reports_running_info(
     ground = GroundEndpoint(ground_config(), make_keys())
     ground.connection_made(T0)
 
+    # 6.16: a HEARTBEAT with echo 0 opens the connection; the ground answers with its own
+    ground.receive_data(peer.frame(0x50, b""), T0)
+    assert peer.parse(ground.data_to_send()) == [(0x50, b"")]
+    # 5.3: the REGISTER_REQUEST echoes that ground timestamp
     register = struct.pack(">8s8sII", b"K1234", b"SS4-0123", 42, 260_000)  # 6.1
     ground.receive_data(peer.frame(0x01, register), T0)
     answers = peer.parse(ground.data_to_send())

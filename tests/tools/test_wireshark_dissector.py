@@ -768,6 +768,12 @@ MALFORMED: dict[str, tuple[bytes, str]] = {
     "unknown target reason": (raw_frame(bytes(8) + b"\x04", 0x24), "BODY"),
     "unknown TSR ack result": (raw_frame(b"\0\0\0\x01\x03", 0x31), "BODY"),
     "station list count mismatch": (raw_frame(b"\x02" + bytes(10), 0x21), "LENGTH"),
+    # spec 5.4 #13: a count that fits the body but is over 64 is a range (body) failure
+    "station list of 65 entries": (raw_frame(b"\x41" + bytes(650), 0x21), "BODY"),
+    "offset not onboard - ground": (
+        raw_frame((5).to_bytes(8, "big") + (7).to_bytes(8, "big") + (3).to_bytes(8, "big"), 0x11),
+        "BODY",
+    ),
     "dispatch text length mismatch": (raw_frame(b"\0\0\0\x01\0\x05abc", 0x40), "LENGTH"),
     "dispatch text not UTF-8": (raw_frame(b"\0\0\0\x01\0\x02\xc3\x28", 0x40), "BODY"),
     "bad CRC": (corrupt(raw_frame(RI_BODY)), "CRC"),

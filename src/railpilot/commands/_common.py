@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sys
 from typing import Any
 
@@ -24,6 +25,27 @@ def print_json(obj: Any) -> None:
     sys.stdout.write(json.dumps(_clean(obj), indent=2, default=str) + "\n")
 
 
+def json_line(obj: Any) -> str:
+    """``obj`` as compact one-line JSON (NaN/inf as null), for output written piece by piece."""
+    try:
+        return json.dumps(obj, default=str, allow_nan=False)
+    except ValueError:  # a NaN or inf somewhere (rare): only then walk the whole object
+        return json.dumps(_clean(obj), default=str)
+
+
 def log(message: str) -> None:
     """Progress and logs go to stderr, never stdout."""
     print(message, file=sys.stderr, flush=True)
+
+
+def file_stem(*parts: str) -> str:
+    """A file name stem from a scenario name (and a controller name...): ``a_b``.
+
+    Each part keeps letters, digits, ``.``, ``-`` and ``_``; any other run of
+    characters (spaces, ``/``, ``:``) becomes one ``-``, so a scenario named
+    ``"eddy case 1: 3500 N m"`` with controller ``pid`` gives ``eddy-case-1-3500-N-m_pid``.
+    Every file a command writes for one run starts with this stem, so runs of other
+    scenarios or controllers into the same folder never overwrite each other.
+    """
+    cleaned = [re.sub(r"[^A-Za-z0-9._-]+", "-", part).strip("-.") for part in parts]
+    return "_".join(c for c in cleaned if c) or "run"

@@ -11,16 +11,19 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import json
 import logging
 import math
+import re
 import signal
 import sys
+from collections.abc import Iterable
 from pathlib import Path
-from typing import Any
+from typing import Any, TextIO
 
-from railpilot.commands._common import log, print_json
+from railpilot.commands._common import json_line, log, print_json
 from railpilot.link.config import REPLAY_WINDOW_S
-from railpilot.link.errors import LinkConfigError
+from railpilot.link.errors import LinkConfigError, LinkError
 
 DEFAULT_PORT = 7400
 DEFAULT_ADMIN_PORT = 7401
@@ -290,13 +293,17 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
     p = sub.add_parser(
         "decode",
         help="decode frames from hex or raw bytes",
-        description="Decode every frame in FILE (or stdin) and show each check's verdict. "
-        "Input is hex (whitespace, ':' and '0x' ignored) or raw bytes; detected "
-        "automatically (a raw frame always holds 0x7E, which is no hex digit).",
+        description="Decode every frame in FILE (or stdin) and show each check's verdict, "
+        "a frame at a time. Input is raw bytes when it holds a frame start (bytes 0x7E 0x01: "
+        "the header byte and the version byte), otherwise hex text (whitespace, ':', '0x' "
+        "prefixes and '#' comments ignored); bad hex exits 2 naming its line and column. "
+        "A frame cut off by the end of the input is reported as truncated.",
     )
     p.add_argument("file", nargs="?", default="-", help="input file, '-' = stdin [-]")
     p.add_argument("--keys", type=Path, help="key file (chmod 600) to verify MACs")
-    p.add_argument("--hex", action="store_true", help="input is hex (no auto-detection)")
+    form = p.add_mutually_exclusive_group()
+    form.add_argument("--hex", action="store_true", help="input is hex text (no detection)")
+    form.add_argument("--raw", action="store_true", help="input is raw bytes (no detection)")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_link_decode)
 
@@ -510,32 +517,128 @@ def _onboard_run(args: argparse.Namespace) -> int:
 # --- link tools -------------------------------------------------------------------------------
 
 
+class DecodeInputError(LinkError, ValueError):
+    """The input of a link tool cannot be read as asked: an unreadable file or bad hex text.
+
+    The message names the input, where the problem is (line and column, both 1-based, for
+    hex text) and what is allowed there; it is raised before anything is printed.
+    """
+
+    def __init__(self, field: str, problem: str, what_next: str = "nothing was decoded") -> None:
+        self.field = field
+        self.problem = problem
+        super().__init__(f"{field}: {problem}; {what_next}")
+
+
 def _read_input(name: str) -> bytes:
     if name == "-":
         return sys.stdin.buffer.read()
     try:
         return Path(name).read_bytes()
     except OSError as exc:
-        raise LinkConfigError("FILE", name, f"a readable file ({exc.strerror})") from None
+        raise DecodeInputError(name, f"not a readable file ({exc.strerror})") from None
 
 
+#: What the proxy's --inject takes for hex (see _looks_hex).
 _HEX_CHARS = frozenset(b"0123456789abcdefABCDEF \t\r\n:xX")
+#: Every frame on the wire starts with the header byte 0x7E and the version byte 0x01.
+#: Hex text never holds that pair (0x01 is a control character), a raw capture of any
+#: frame always does.
+_FRAME_START = b"\x7e\x01"
+_HEX_ALLOWED = "allowed: 0-9 a-f A-F, whitespace, ':', '0x' prefixes, '#' comments"
+_READ_AS_HEX = (
+    "; the input holds no frame start (bytes 0x7E 0x01), so it was read as hex text: "
+    "--raw reads it as raw bytes"
+)
+_WHITESPACE = " \t\r\n\f\v"
+_COMMENT = re.compile(r"#[^\n]*")
+#: Anything but a hex digit, whitespace or ':', and an 'x' that does not follow a '0'
+#: starting a token (the '0x' prefix). The text is searched with a '\n' in front.
+_BAD_HEX = re.compile(rf"[^0-9a-fA-F{_WHITESPACE}:xX]|(?<![{_WHITESPACE}:]0)[xX]")
+_PREFIX = re.compile(rf"(?<=[{_WHITESPACE}:])0[xX]")
+_DIGIT_RUN = re.compile(r"[0-9a-fA-F]+")
+_NOT_DIGITS = str.maketrans("", "", _WHITESPACE + ":")
 
 
-def parse_hex(data: bytes, field: str = "input") -> bytes:
-    """Hex text (whitespace, ':' and '0x' prefixes allowed, '#' comments) -> bytes."""
-    text = "\n".join(line.split("#", 1)[0] for line in data.decode("ascii").splitlines())
-    text = text.replace("0x", " ").replace("0X", " ").replace(":", " ")
-    digits = "".join(text.split())
-    try:
-        return bytes.fromhex(digits)
-    except ValueError:
-        raise LinkConfigError(field, digits[:40], "hex digits in pairs") from None
+def parse_hex(
+    data: bytes, field: str = "input", *, what_next: str = "nothing was decoded", hint: str = ""
+) -> bytes:
+    """Hex text -> bytes.
+
+    Allowed: hex digits, whitespace (space, tab, CR, LF, FF, VT), ':', a '0x' / '0X' prefix
+    at the start of a token, and '#' comments to the end of the line; a UTF-8 byte-order mark
+    is skipped. Digits pair up in order across separators and lines. Anything else, or an
+    odd number of digits, raises :class:`DecodeInputError` naming the line and column
+    (1-based, counted in characters) of the offending character or the unpaired last
+    digit. ``hint`` is appended to the message when the offending character is not
+    printable or is '~' (0x7E), both signs of raw bytes.
+    """
+    # The '\n' in front makes every line, the first included, start after a newline.
+    text = "\n" + data.decode("utf-8-sig", "surrogateescape")
+    if "#" in text:  # blank comments out, keeping every position
+        text = _COMMENT.sub(lambda m: " " * len(m.group()), text)
+    bad = _BAD_HEX.search(text)
+    if bad is not None:
+        i = bad.start()
+        # A control character, a byte that is not UTF-8 or a '~' (0x7E, the header byte)
+        # suggests a raw capture without a frame start: say why it was read as hex.
+        extra = hint if not text[i].isprintable() or text[i] == "~" else ""
+        raise DecodeInputError(
+            field,
+            f"{_position(text, i)}: {_show_char(text[i])} is not a hex digit "
+            f"({_HEX_ALLOWED}){extra}",
+            what_next,
+        )
+    if "x" in text or "X" in text:
+        text = _PREFIX.sub("  ", text)
+    digits = text.translate(_NOT_DIGITS)
+    if len(digits) % 2:
+        raise DecodeInputError(field, _odd_digits(text, len(digits)), what_next)
+    return bytes.fromhex(digits)
+
+
+def _position(text: str, i: int) -> str:
+    """'line L, column C' of ``text[i]`` (``text`` starts with an extra '\n')."""
+    return f"line {text.count(chr(10), 0, i)}, column {i - text.rfind(chr(10), 0, i)}"
+
+
+def _show_char(char: str) -> str:
+    if "\udc80" <= char <= "\udcff":  # a byte that is not UTF-8 (surrogateescape)
+        return f"byte 0x{ord(char) - 0xDC00:02x}"
+    return repr(char)
+
+
+def _odd_digits(text: str, count: int) -> str:
+    """The error for an odd number of digits: where the unpaired last digit is, and where
+    the first run of an odd number of digits starts (often where a digit went missing)."""
+    first_odd: int | None = None
+    last = (0, 0)
+    for run in _DIGIT_RUN.finditer(text):
+        if first_odd is None and len(run.group()) % 2:
+            first_odd = run.start()
+        last = run.span()
+    i = last[1] - 1
+    message = (
+        f"{_position(text, i)}: odd number of hex digits ({count}): {_show_char(text[i])} "
+        "has no partner; expected hex digits in pairs"
+    )
+    if first_odd is not None and first_odd != last[0]:
+        message += (
+            " (digits pair up across separators; the first run of an odd number of digits "
+            f"starts at {_position(text, first_odd)})"
+        )
+    return message
 
 
 def _looks_hex(data: bytes) -> bool:
+    """The proxy's --inject FILE|HEX rule: only hex digits, separators and comments."""
     body = b"\n".join(line.split(b"#", 1)[0] for line in data.splitlines())
     return bool(body.strip()) and all(b in _HEX_CHARS for b in body)
+
+
+def _is_raw(data: bytes) -> bool:
+    """The decode tool's rule: raw bytes when the input holds a frame start, else hex text."""
+    return _FRAME_START in data
 
 
 def _link_decode(args: argparse.Namespace) -> int:
@@ -543,41 +646,69 @@ def _link_decode(args: argparse.Namespace) -> int:
 
     keys = _keys(args.keys, True)  # refuse an unsafe key file before reading anything
     data = _read_input(args.file)
-    if args.hex or _looks_hex(data):
-        try:
-            data = parse_hex(data)
-        except UnicodeDecodeError:
-            raise LinkConfigError("input", "<binary>", "hex text with --hex") from None
-    reports = [_report_dict(r) for r in decode_stream(data, keys)]
+    if args.hex or (not args.raw and not _is_raw(data)):
+        # Every input error is raised here, before anything is printed.
+        data = parse_hex(data, hint="" if args.hex else _READ_AS_HEX)
+    reports = decode_stream(data, keys)  # a generator: one report at a time
     if args.json:
-        print_json(
-            {
-                "frames": reports,
-                "count": len(reports),
-                "ok": sum(1 for r in reports if r["ok"]),
-                "failed": sum(1 for r in reports if not r["ok"]),
-                "bytes": len(data),
-            }
-        )
-        return 0
-    for i, r in enumerate(reports, 1):
+        _write_json(reports, len(data), sys.stdout)
+    else:
+        _write_text(reports, sys.stdout)
+    return 0
+
+
+def _write_json(reports: Iterable[Any], n_bytes: int, out: TextIO) -> None:
+    """One JSON object, written a frame at a time (one frame per line).
+
+    ``{"frames": [...], "count", "ok", "failed", "bytes", "truncated"}``; only one frame's
+    report is held at a time, and the totals come last.
+    """
+    count = ok = 0
+    truncated = False
+    out.write('{\n  "frames": [')
+    for report in reports:
+        out.write(f"{',' if count else ''}\n    {json_line(_report_dict(report))}")
+        count += 1
+        ok += report.ok
+        truncated = truncated or report.truncated
+    out.write("\n  ]" if count else "]")
+    totals = {
+        "count": count,
+        "ok": ok,
+        "failed": count - ok,
+        "bytes": n_bytes,
+        "truncated": truncated,
+    }
+    for key, value in totals.items():
+        out.write(f',\n  "{key}": {json.dumps(value)}')
+    out.write("\n}\n")
+
+
+def _write_text(reports: Iterable[Any], out: TextIO) -> None:
+    """Each frame as soon as it is decoded: a header line, then a line per verdict."""
+    count = 0
+    for count, report in enumerate(reports, 1):
+        r = _report_dict(report)
         h = r["header"]
-        if h is None:
-            print(f"frame {i}: not a frame")
+        if report.truncated:
+            lines = [f"frame {count}: {report.verdicts[0].detail}"]
+        elif h is None:
+            lines = [f"frame {count}: not a frame"]
         else:
-            print(
-                f"frame {i}: {h['message_type_name']} {h['source_id']} -> {h['destination_id']} "
-                f"seq {h['sequence']} ts {h['timestamp_us']} echo {h['echo_timestamp_us']} "
-                f"key {h['key_id']}: {'OK' if r['ok'] else 'FAILED'}"
-            )
+            lines = [
+                f"frame {count}: {h['message_type_name']} {h['source_id']} -> "
+                f"{h['destination_id']} seq {h['sequence']} ts {h['timestamp_us']} "
+                f"echo {h['echo_timestamp_us']} key {h['key_id']}: "
+                f"{'OK' if r['ok'] else 'FAILED'}"
+            ]
         for v in r["verdicts"]:
             mark = {True: "ok  ", False: "FAIL", None: "skip"}[v["ok"]]
-            print(f"  {mark} {v['check']:<11} {v['detail']}")
+            lines.append(f"  {mark} {v['check']:<11} {v['detail']}")
         if r["message"] is not None:
-            print(f"  message {r['message']['type']}: {r['message']['fields']}")
-    if not reports:
-        print("no frames found")
-    return 0
+            lines.append(f"  message {r['message']['type']}: {r['message']['fields']}")
+        out.write("\n".join(lines) + "\n")
+    if not count:
+        out.write("no frames found\n")
 
 
 def _report_dict(report: Any) -> dict[str, Any]:
@@ -646,7 +777,11 @@ def _link_proxy(args: argparse.Namespace) -> int:
     if args.inject:
         path = Path(args.inject)
         raw = path.read_bytes() if path.is_file() else args.inject.encode("ascii", "replace")
-        inject = parse_hex(raw, "--inject") if _looks_hex(raw) else raw
+        inject = (
+            parse_hex(raw, "--inject", what_next="the proxy was not started")
+            if _looks_hex(raw)
+            else raw
+        )
     directions = ("up", "down") if args.faults_on == "both" else (args.faults_on,)
     options = ProxyOptions(
         drop=args.drop,

@@ -188,9 +188,10 @@ def _encode(message: Any) -> bytes:
     if isinstance(m, TimeCheck):
         return _TIME_CHECK.pack(_us(m.ground_time_s))
     if isinstance(m, TimeOffsetReport):
-        return _TIME_OFFSET.pack(
-            _us(m.ground_time_s), _us(m.onboard_time_s), round(m.offset_s * 1_000_000.0)
-        )
+        ground_us, onboard_us = _us(m.ground_time_s), _us(m.onboard_time_s)
+        # the offset is the exact difference of the two fields as sent (6.6), never a
+        # separately rounded float that can be 1 us off
+        return _TIME_OFFSET.pack(ground_us, onboard_us, onboard_us - ground_us)
     if isinstance(m, StationStops):
         return _U8.pack(len(m.stops)) + b"".join(
             _STATION_STOP.pack(
@@ -279,11 +280,14 @@ def _count_entries(b: bytes, entry_size: int) -> int:
     if not b:
         raise LengthError("list body is empty; expected a count byte")
     count = b[0]
-    if count > MAX_LIST_ENTRIES or len(b) != 1 + count * entry_size:
+    # Spec 5.4 #13: a count that disagrees with the body length is a *length* failure; a
+    # count that agrees but is out of its range is a *body* failure, like any other field.
+    if len(b) != 1 + count * entry_size:
         raise LengthError(
-            f"list of {count} entries needs {1 + count * entry_size} bytes, got {len(b)} "
-            f"(at most {MAX_LIST_ENTRIES} entries)"
+            f"list of {count} entries needs {1 + count * entry_size} bytes, got {len(b)}"
         )
+    if count > MAX_LIST_ENTRIES:
+        raise BodyError(f"list of {count} entries; at most {MAX_LIST_ENTRIES} allowed")
     return count
 
 
@@ -301,6 +305,10 @@ def _dec_dispatch(b: bytes) -> Message:
 
 def _dec_time_offset(b: bytes) -> Message:
     ground, onboard, offset = _TIME_OFFSET.unpack(b)
+    if offset != onboard - ground:
+        raise BodyError(
+            f"offset {offset} us is not onboard time - ground time = {onboard - ground} us"
+        )
     return TimeOffsetReport(
         _seconds(ground, "ground_time_s"),
         _seconds(onboard, "onboard_time_s"),

@@ -56,6 +56,14 @@ class LinkTimers:
     reconnect_max_s: float = 30.0
     #: Fraction of the delay drawn at random (0 = none, 1 = anywhere in [0, delay]).
     reconnect_jitter: float = 0.5
+    #: Before a time check has measured the clock offset on a connection, a frame may be
+    #: timestamped at most this far ahead of the receiver's clock; later, at most
+    #: ``max_round_trip_s`` ahead of the peer's clock as the offset predicts it [s]. A frame
+    #: beyond is implausible and refused, so it can never advance the accepted timestamp.
+    max_clock_skew_s: float = 10.0
+    #: A connection on which this many frames in a row were rejected is not speaking the
+    #: protocol: the endpoint reports a link failure and the adapter closes it.
+    max_consecutive_rejections: int = 16
 
     def __post_init__(self) -> None:
         _check_number("timers.cycle_s", self.cycle_s, 0.05, 60.0)
@@ -74,6 +82,10 @@ class LinkTimers:
             "timers.reconnect_max_s", self.reconnect_max_s, self.reconnect_initial_s, 3600.0
         )
         _check_number("timers.reconnect_jitter", self.reconnect_jitter, 0.0, 1.0)
+        _check_number("timers.max_clock_skew_s", self.max_clock_skew_s, 0.01, 86400.0)
+        _check_int(
+            "timers.max_consecutive_rejections", self.max_consecutive_rejections, 1, 1_000_000
+        )
 
 
 def reconnect_delay_s(attempt: int, timers: LinkTimers, random_fraction: float) -> float:

@@ -4,6 +4,10 @@
 one :class:`FrameReport` per frame or framing problem, with a verdict for every check that
 can be judged without connection state. Sequence, timestamp-order and delay checks need
 the connection history and are reported as skipped. It never raises on any input.
+
+The input is taken as complete: when it ends inside a frame, the last report says so
+(:attr:`FrameReport.truncated`). Reports are produced one at a time and the input is fed
+to the frame decoder in small slices, so memory does not grow with the number of frames.
 """
 
 from __future__ import annotations
@@ -30,6 +34,9 @@ from .keys import KeyStore
 from .messages import MESSAGE_CLASSES, LinkDirection, Message, MessageType
 
 _HEADER = struct.Struct(">BBHBHIIIQQ")
+#: Input bytes fed to the frame decoder at a time. A slice yields at most one framing
+#: problem per 2 bytes, so this bounds what is held at once whatever the input size.
+_FEED_BYTES = 4096
 
 
 @dataclass(frozen=True, slots=True)
@@ -49,6 +56,8 @@ class FrameReport:
     frame: Frame | None  # header fields, when the header could be read
     message: Message | None  # decoded body, when the body checks passed
     verdicts: tuple[Verdict, ...]
+    #: The input ended inside this frame (only ever the last report; a FRAMING failure).
+    truncated: bool = False
 
     @property
     def ok(self) -> bool:
@@ -67,15 +76,33 @@ def decode_stream(
     expect_destination: int | None = None,
     max_frame_length: int = DEFAULT_MAX_FRAME_LENGTH,
 ) -> Iterator[FrameReport]:
-    """Yield a :class:`FrameReport` for every frame or framing problem in ``data``."""
+    """Yield a :class:`FrameReport` for every frame or framing problem in ``data``.
+
+    ``data`` is the whole input: if it ends inside a frame, the last report is that frame,
+    ``truncated``, with a failed FRAMING verdict "truncated: input ends after K of L bytes"
+    (unstuffed bytes received of the length field's total; "... after K bytes, before the
+    length field" when fewer than 4 came).
+    """
     decoder = FrameDecoder(max_frame_length)
-    for item in decoder.feed(data):
-        if isinstance(item, FrameError):
-            yield FrameReport(None, None, None, (Verdict(item.check, False, item.detail),))
-        else:
-            yield inspect_frame(
-                item, keys, expect_source=expect_source, expect_destination=expect_destination
-            )
+    for start in range(0, len(data), _FEED_BYTES):
+        for item in decoder.feed(data[start : start + _FEED_BYTES]):
+            if isinstance(item, FrameError):
+                yield FrameReport(None, None, None, (Verdict(item.check, False, item.detail),))
+            else:
+                yield inspect_frame(
+                    item, keys, expect_source=expect_source, expect_destination=expect_destination
+                )
+    pending = decoder.pending_frame()
+    if pending is not None:
+        yield _truncated_report(*pending)
+
+
+def _truncated_report(received: int, length: int | None) -> FrameReport:
+    if length is None:
+        detail = f"truncated: input ends after {received} bytes, before the length field"
+    else:
+        detail = f"truncated: input ends after {received} of {length} bytes"
+    return FrameReport(None, None, None, (Verdict(Check.FRAMING, False, detail),), truncated=True)
 
 
 def inspect_frame(
@@ -157,13 +184,21 @@ def inspect_frame(
 def _auth_verdict(
     raw: bytes, frame: Frame, auth: bool, keys: KeyStore | None, mtype: MessageType | None
 ) -> Verdict:
+    """The AUTH verdict without connection state, which means choosing the train's key.
+
+    The train is the source of an uplink frame and the destination of a downlink frame. A
+    HEARTBEAT (allowed both ways) and a frame of unknown type have no fixed direction: the
+    source id is tried as the train first, then the destination id, and the first of them
+    that has key id ``frame.key_id`` in ``keys`` is the train; the MAC is checked with that
+    key only. The ground id is never a train id, so in a well-formed key file at most one of
+    the two has keys. The detail names the train whose key verified (or failed) the MAC.
+    """
     if not auth:
         return Verdict(Check.AUTH, None if frame.key_id == 0 else False, "not authenticated")
     if frame.key_id == 0 or frame.mac is None:
         return Verdict(Check.AUTH, False, "AUTH flag with key id 0")
     if keys is None:
         return Verdict(Check.AUTH, None, f"key id {frame.key_id}; no key store given")
-    # The train is the source of uplink frames and the destination of downlink ones.
     direction = MESSAGE_CLASSES[mtype].DIRECTION if mtype is not None else LinkDirection.BOTH
     candidates = {
         LinkDirection.UPLINK: (frame.source_id,),
@@ -173,6 +208,12 @@ def _auth_verdict(
     for train in candidates:
         key = keys.lookup(train, frame.key_id)
         if key is not None:
-            ok = hmac.compare_digest(compute_mac(key, raw), frame.mac)
-            return Verdict(Check.AUTH, ok, f"key id {frame.key_id} of train {train}")
-    return Verdict(Check.AUTH, False, f"no key id {frame.key_id} for train(s) {candidates}")
+            if hmac.compare_digest(compute_mac(key, raw), frame.mac):
+                return Verdict(
+                    Check.AUTH, True, f"verified with key id {frame.key_id} of train {train}"
+                )
+            return Verdict(
+                Check.AUTH, False, f"MAC does not match key id {frame.key_id} of train {train}"
+            )
+    trains = " or ".join(str(t) for t in dict.fromkeys(candidates))
+    return Verdict(Check.AUTH, False, f"no key id {frame.key_id} for train {trains}")

@@ -63,8 +63,14 @@ class Endpoint:
 
     _channel: SecureChannel
 
-    def __init__(self, cycle_s: float, max_frame_length: int) -> None:
+    def __init__(
+        self, cycle_s: float, max_frame_length: int, max_consecutive_rejections: int
+    ) -> None:
         self.counters = LinkCounters()
+        # Frames rejected in a row on this connection; at the limit the peer is taken for
+        # not speaking the protocol (random bytes, a flood) and the link fails.
+        self._max_consecutive_rejections = max_consecutive_rejections
+        self._consecutive_rejections = 0
         self._decoder = FrameDecoder(max_frame_length)
         self._events: deque[Event] = deque()
         self._outgoing: list[bytes] = []
@@ -91,7 +97,7 @@ class Endpoint:
             raise LocalProtocolError("receive_data() called while not connected")
         for item in self._decoder.feed(data):
             if isinstance(item, FrameError):
-                self._reject(item, None)
+                self._reject(item, None, now_s)
             else:
                 self._receive_frame(item, now_s)
         self.counters.bytes_discarded = self._decoder.bytes_discarded
@@ -123,8 +129,7 @@ class Endpoint:
             # The ground learns who its peer is from the first frame; until then it has
             # nobody to address a heartbeat to.
             if now_s >= self._next_heartbeat_s and self._channel.peer_id is not None:
-                self._next_heartbeat_s = now_s + self._cycle_s
-                self._queue(Heartbeat(), now_s)
+                self._send_heartbeat(now_s)
             for supervisor in self._supervisors.values():
                 if supervisor.poll(now_s):
                     self.counters.timeouts += 1
@@ -174,12 +179,17 @@ class Endpoint:
     def _queue(self, message: Message, now_s: float) -> None:
         self._outgoing.append(self._channel.encode(message, now_s))
 
+    def _send_heartbeat(self, now_s: float) -> None:
+        self._next_heartbeat_s = now_s + self._cycle_s
+        self._queue(Heartbeat(), now_s)
+
     def _start_connection(self, now_s: float) -> None:
         self._connected = True
         self._decoder.reset()
         self._outgoing.clear()
         self._pool.clear()
-        self._channel.new_connection()
+        self._channel.new_connection(now_s)
+        self._consecutive_rejections = 0
         self._next_heartbeat_s = now_s
 
     def _stop_connection(self) -> None:
@@ -213,7 +223,7 @@ class Endpoint:
         try:
             frame, message, lost = self._channel.receive(raw, now_s)
         except FrameError as exc:
-            self._reject(exc, raw)
+            self._reject(exc, raw, now_s)
             return
         if lost:
             self.counters.sequence_gaps += 1
@@ -222,17 +232,31 @@ class Endpoint:
         try:
             self._on_message(frame, message, now_s)
         except StateError as exc:
-            self._reject(exc, raw)
+            self._reject(exc, raw, now_s)
             return
         self.counters.frames_accepted += 1
+        self._consecutive_rejections = 0
         # IntEnum keys hash like their int codes, so the raw code finds them.
         supervisor = self._supervisors.get(frame.message_type)  # type: ignore[call-overload]
         if supervisor is not None and not supervisor.timed_out:
             supervisor.accept(message, now_s)
 
-    def _reject(self, exc: FrameError, raw: bytes | None) -> None:
+    def _reject(self, exc: FrameError, raw: bytes | None, now_s: float) -> None:
         self.counters.rejected[exc.check] += 1
         mtype = src = seq = None
         if raw is not None and len(raw) >= _PEEK.size:
             _, _, _, mtype, _, src, _, seq, _ = _PEEK.unpack_from(raw)
         self._events.append(REJECTION_BY_CHECK[exc.check](exc.detail, mtype, src, seq))
+        self._consecutive_rejections += 1
+        if (
+            self._consecutive_rejections == self._max_consecutive_rejections
+            and self._connected
+            and self._link_usable()
+        ):
+            # Every frame rejected, many times over: not a peer on a noisy link (which gets
+            # most frames through) but something that does not speak the protocol.
+            self._fail(
+                f"{self._consecutive_rejections} frames in a row rejected: the peer is not "
+                "speaking the protocol",
+                now_s,
+            )

@@ -84,6 +84,25 @@ class FrameDecoder:
         """Forget any partial frame (call on a new connection)."""
         self._buffer.clear()
 
+    def pending_frame(self) -> tuple[int, int | None] | None:
+        """The incomplete frame held for more data, for a caller that knows the input ended.
+
+        Returns ``(received, length)``: the unstuffed frame bytes received so far (a trailing
+        lone ``0x7E``, which may be the first half of a stuffed pair, is not counted) and the
+        frame's length field, or ``None`` for it while fewer than 4 bytes are in. Returns
+        ``None`` when no frame was started. Read-only: the decoder's state is unchanged.
+        """
+        buf = self._buffer
+        if not buf:
+            return None
+        # After feed() a non-empty buffer always starts at a frame's header byte.
+        stuffed = bytes(buf[1:])
+        if (len(stuffed) - len(stuffed.rstrip(HEADER))) % 2:
+            stuffed = stuffed[:-1]
+        frame = unstuff(stuffed)
+        length = (frame[2] << 8) | frame[3] if len(frame) >= PREFIX_LENGTH else None
+        return len(frame), length
+
     def feed(self, data: bytes) -> list[bytes | FrameError]:
         """Take received bytes; return the complete frames and framing problems in order."""
         out: list[bytes | FrameError] = []

@@ -14,6 +14,7 @@ passes to every endpoint. A TSR issued while the train is offline waits there.
 
 from __future__ import annotations
 
+import itertools
 from collections.abc import Mapping, MutableMapping
 from dataclasses import dataclass, field
 from enum import Enum
@@ -72,7 +73,7 @@ class GroundState(Enum):
 
 
 class GroundInput(Enum):
-    LINK_TIMEOUT = "link timeout"  # tick()
+    LINK_FAILURE = "link failure"  # a periodic timeout (tick) or a rejection flood
     CONNECTION_LOST = "connection lost"  # adapter
     SEND = "send"  # application sends an unacknowledged message
     RECV_REGISTER_ACCEPTED = "register (accepted)"
@@ -104,7 +105,7 @@ TRANSITIONS: Mapping[tuple[GroundState, GroundInput], GroundState] = {
     (_G.DEREGISTERED, _GI.RECV_REGISTER_ACCEPTED): _G.REGISTERED,
     (_G.DEREGISTERED, _GI.RECV_REGISTER_REFUSED): _G.DEREGISTERED,
     **{(s, _GI.RECV_HEARTBEAT): s for s in _LIVE},
-    **{(s, _GI.LINK_TIMEOUT): _G.FAILED for s in _LIVE},
+    **{(s, _GI.LINK_FAILURE): _G.FAILED for s in _LIVE},
     **{(s, _GI.CONNECTION_LOST): _G.CLOSED for s in (*_LIVE, _G.FAILED)},
 }
 
@@ -209,13 +210,19 @@ class TrainRecord:
     """Everything the ground keeps about one train across connections."""
 
     train_id: int
+    #: The train's last registration stands: set by an accepted REGISTER_REQUEST, cleared
+    #: only by a DEREGISTER_REQUEST on the connection that holds the registration.
     registered: bool = False
+    #: ``GroundEndpoint.serial`` of the connection on which the registration was accepted
+    #: (it stays after that connection closed: no other connection holds it then).
+    registered_on: int | None = None
     registration: RegisterRequest | None = None
     history: PeerHistory = field(default_factory=PeerHistory)
     tsrs: dict[int, TsrDelivery] = field(default_factory=dict)
     dispatch_commands: dict[int, Delivery] = field(default_factory=dict)
     target_points: dict[int, Delivery] = field(default_factory=dict)
     running_info: HeldValue = field(default_factory=HeldValue)
+    #: Onboard clock minus ground clock from the last TIME_OFFSET_REPORT [s].
     time_offset_s: float | None = None
 
     # The server may call these for a train that is offline; the next connection of the
@@ -253,6 +260,9 @@ class TrainRecord:
         self.dispatch_commands[command.command_number] = Delivery(command)
 
 
+_ENDPOINT_SERIALS = itertools.count(1)
+
+
 class GroundEndpoint(Endpoint):
     """Protocol core of the ground front server for one connection (one train).
 
@@ -275,8 +285,10 @@ class GroundEndpoint(Endpoint):
         records: MutableMapping[int, TrainRecord] | None = None,
     ) -> None:
         timers = config.timers
-        super().__init__(timers.cycle_s, config.max_frame_length)
+        super().__init__(timers.cycle_s, config.max_frame_length, timers.max_consecutive_rejections)
         self.config = config
+        #: Identifies this connection in ``TrainRecord.registered_on``.
+        self.serial = next(_ENDPOINT_SERIALS)
         self.records: MutableMapping[int, TrainRecord] = records if records is not None else {}
         self.state = GroundState.AWAITING_REGISTRATION
         self.train_id: int | None = None
@@ -286,6 +298,7 @@ class GroundEndpoint(Endpoint):
             keys=keys,
             require_auth=config.require_auth,
             max_round_trip_s=timers.max_round_trip_s,
+            max_clock_skew_s=timers.max_clock_skew_s,
             history_for=self._history,
             counters=self.counters,
         )
@@ -310,6 +323,21 @@ class GroundEndpoint(Endpoint):
     def record(self) -> TrainRecord | None:
         """Record of the train on this connection (``None`` before it is known)."""
         return None if self.train_id is None else self.record_for(self.train_id)
+
+    @property
+    def holds_registration(self) -> bool:
+        """This connection is the one on which the train's standing registration was made.
+
+        Only that connection sends the train's deliveries, and only a DEREGISTER_REQUEST
+        on it ends the registration (protocol.md 8.2).
+        """
+        record = self.record
+        return (
+            record is not None
+            and record.registered
+            and record.registered_on == self.serial
+            and self.state is GroundState.REGISTERED
+        )
 
     # --- lifecycle (adapter) --------------------------------------------------------------------
 
@@ -384,7 +412,7 @@ class GroundEndpoint(Endpoint):
                     delivery.state = transition(
                         TSR_TRANSITIONS, delivery.state, _TI.VALIDITY_ENDED, remote=False
                     )
-        if self._connected and self.state is GroundState.REGISTERED:
+        if self._connected and self.holds_registration:
             if now_s >= self._next_time_check_s:
                 self._next_time_check_s = now_s + self.config.timers.time_check_interval_s
                 self._queue(TimeCheck(now_s), now_s)
@@ -392,7 +420,7 @@ class GroundEndpoint(Endpoint):
 
     def _extra_deadline_s(self) -> float | None:
         record = self.record
-        if not self._connected or self.state is not GroundState.REGISTERED or record is None:
+        if not self._connected or not self.holds_registration or record is None:
             return None
         times = [self._next_time_check_s]
         times += [d.next_send_s for d in record.tsrs.values() if d.state in _TSR_SENDS_SET]
@@ -404,7 +432,7 @@ class GroundEndpoint(Endpoint):
     def _pump(self, now_s: float) -> None:
         """Send every pending delivery that is due (only while the train is registered)."""
         record = self.record
-        if not self._connected or self.state is not GroundState.REGISTERED or record is None:
+        if not self._connected or not self.holds_registration or record is None:
             return
         resend = self.config.timers.resend_interval_s
         for delivery in record.tsrs.values():
@@ -430,7 +458,7 @@ class GroundEndpoint(Endpoint):
                     self._queue(item.message, now_s)
 
     def _on_failure(self, now_s: float) -> None:
-        self.state = transition(TRANSITIONS, self.state, _GI.LINK_TIMEOUT, remote=False)
+        self.state = transition(TRANSITIONS, self.state, _GI.LINK_FAILURE, remote=False)
         record = self.record
         if record is not None:
             record.running_info.valid = False
@@ -439,21 +467,27 @@ class GroundEndpoint(Endpoint):
 
     def _on_message(self, frame: Frame, message: Message, now_s: float) -> None:
         if self.train_id is None:
-            # The first authentic frame binds this connection to its train.
+            # The first authentic frame binds this connection to its train. Our HEARTBEAT
+            # goes out at once: it is the fresh timestamp the train must echo before any
+            # frame of it can change state (5.3), so a withheld frame never can.
             self.train_id = frame.source_id
             self._channel.peer_id = frame.source_id
+            self._send_heartbeat(now_s)
         if isinstance(message, Heartbeat):
             self.state = transition(TRANSITIONS, self.state, _GI.RECV_HEARTBEAT, remote=True)
         elif isinstance(message, RegisterRequest):
             self._on_register(message, now_s)
         elif isinstance(message, DeregisterRequest):
-            before = self.state
+            holder = self.holds_registration
             self.state = transition(TRANSITIONS, self.state, _GI.RECV_DEREGISTER, remote=True)
             record = self._require_record()
-            record.registered = False
             self._supervisors[MessageType.RUNNING_INFO].stop()
             self._queue(DeregisterResponse(), now_s)
-            if before is not GroundState.DEREGISTERED:
+            # Only the connection that holds the registration can end it; on any other
+            # connection the request ends only that connection's registration state.
+            if holder:
+                record.registered = False
+                record.registered_on = None
                 self._events.append(TrainDeregistered(record.train_id, message.reason))
         else:
             is_ack = isinstance(message, TsrSetAck | TsrCancelAck | DispatchAck | TargetPointAck)
@@ -475,6 +509,7 @@ class GroundEndpoint(Endpoint):
         if before is GroundState.REGISTERED:
             return  # a resent request: answer again, change nothing
         record.registered = True
+        record.registered_on = self.serial
         record.registration = request
         self._events.append(TrainRegistered(record.train_id, request))
         # Re-deliver everything pending, and have active TSRs confirmed again: the train
@@ -504,6 +539,8 @@ class GroundEndpoint(Endpoint):
             self._on_delivery_ack(record, message)
         elif isinstance(message, TimeOffsetReport):
             record.time_offset_s = message.offset_s
+            # onboard minus ground = how far the train's clock is ahead of ours
+            self._channel.set_peer_clock_ahead(message.offset_us)
             self._deliver_data(frame, message)
         else:
             assert isinstance(message, PlannedCurve)

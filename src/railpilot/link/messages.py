@@ -255,6 +255,28 @@ class TimeOffsetReport(Message):
         _check_float(self, "ground_time_s", 0.0, MAX_EPOCH_S)
         _check_float(self, "onboard_time_s", 0.0, MAX_EPOCH_S)
         _check_float(self, "offset_s", -MAX_OFFSET_S, MAX_OFFSET_S)
+        # The offset IS the difference of the two times (6.6): only the rounding of the
+        # seconds may separate them; on the wire it is their exact difference in us.
+        difference_s = self.onboard_time_s - self.ground_time_s
+        rounding_s = 1e-6 + 4 * math.ulp(max(self.onboard_time_s, self.ground_time_s))
+        if abs(self.offset_s - difference_s) > rounding_s:
+            raise _fail(
+                self, "offset_s", self.offset_s, f"onboard_time_s - ground_time_s = {difference_s}"
+            )
+
+    @classmethod
+    def from_us(cls, ground_time_us: int, onboard_time_us: int) -> TimeOffsetReport:
+        """The report of two clock readings in whole us; the offset is their exact difference."""
+        return cls(
+            ground_time_us / 1e6,
+            onboard_time_us / 1e6,
+            (onboard_time_us - ground_time_us) / 1e6,
+        )
+
+    @property
+    def offset_us(self) -> int:
+        """Onboard minus ground in whole us, exactly as on the wire (integer difference)."""
+        return round(self.onboard_time_s * 1e6) - round(self.ground_time_s * 1e6)
 
 
 @dataclass(frozen=True, slots=True)

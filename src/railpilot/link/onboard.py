@@ -76,7 +76,7 @@ class OnboardState(Enum):
 class OnboardInput(Enum):
     CONNECTION_MADE = "connection made"  # adapter
     CONNECTION_LOST = "connection lost"  # adapter
-    LINK_TIMEOUT = "link timeout"  # tick(): ground heartbeat timed out
+    LINK_FAILURE = "link failure"  # ground heartbeat timed out, or a rejection flood
     REGISTER = "register"  # application: register again after deregistering
     DEREGISTER = "deregister"  # application: mode change, shutdown, leaving main line
     SEND = "send"  # application: send a data message (planned curve)
@@ -108,7 +108,7 @@ TRANSITIONS: Mapping[tuple[OnboardState, OnboardInput], OnboardState] = {
     (_S.DEREGISTERED, _I.RECV_DEREGISTER_CONFIRMED): _S.DEREGISTERED,  # resent confirmation
     (_S.DEREGISTERED, _I.REGISTER): _S.REGISTERING,
     **{(s, _I.RECV_HEARTBEAT): s for s in _CONNECTED},
-    **{(s, _I.LINK_TIMEOUT): _S.FAILED for s in _CONNECTED},
+    **{(s, _I.LINK_FAILURE): _S.FAILED for s in _CONNECTED},
     **{(s, _I.CONNECTION_LOST): _S.DISCONNECTED for s in (*_CONNECTED, _S.FAILED)},
 }
 
@@ -133,7 +133,7 @@ class OnboardEndpoint(Endpoint):
 
     def __init__(self, config: OnboardConfig, keys: KeyStore | None = None) -> None:
         timers = config.timers
-        super().__init__(timers.cycle_s, config.max_frame_length)
+        super().__init__(timers.cycle_s, config.max_frame_length, timers.max_consecutive_rejections)
         if config.require_auth and (keys is None or keys.active(config.train_id) is None):
             raise LinkConfigError(
                 "keys", keys, f"a KeyStore with a key for train {config.train_id} (auth required)"
@@ -147,6 +147,7 @@ class OnboardEndpoint(Endpoint):
             keys=keys,
             require_auth=config.require_auth,
             max_round_trip_s=timers.max_round_trip_s,
+            max_clock_skew_s=timers.max_clock_skew_s,
             history_for=self._history,
             peer_id=config.ground_id,
             key_train_id=config.train_id,
@@ -160,6 +161,8 @@ class OnboardEndpoint(Endpoint):
         self._running_info: RunningInfo | None = None
         self._next_running_info_s = 0.0
         self._next_request_s = 0.0
+        # REGISTER/DEREGISTER_REQUEST copies sent on this connection (0: not yet).
+        self._requests_sent = 0
         self._deregister_reason: DeregisterReason | None = None
         self.reconnect_attempts = 0
         #: TSRs being enforced, by session number.
@@ -175,11 +178,18 @@ class OnboardEndpoint(Endpoint):
     # --- lifecycle (adapter) --------------------------------------------------------------------
 
     def connection_made(self, now_s: float) -> None:
-        """A TCP connection to the ground is up: start registering."""
+        """A TCP connection to the ground is up: start registering.
+
+        The first frame is a HEARTBEAT (echo 0, protocol.md 6.16); REGISTER_REQUEST follows
+        as soon as a frame of the ground was accepted, so that it echoes a fresh ground
+        timestamp (5.3).
+        """
         self.state = transition(TRANSITIONS, self.state, _I.CONNECTION_MADE, remote=False)
         self._start_connection(now_s)
         self._supervisors[MessageType.HEARTBEAT].start(now_s)
-        self._send_register(now_s)
+        self._send_heartbeat(now_s)
+        self._requests_sent = 0
+        self._next_request_s = now_s
 
     def connection_lost(self, now_s: float) -> None:
         """The TCP connection is gone (closed by either side or after LinkFailed)."""
@@ -214,16 +224,21 @@ class OnboardEndpoint(Endpoint):
         self._queue(message, now_s)
 
     def deregister(self, reason: DeregisterReason, now_s: float) -> None:
-        """Leave the ground's management (shunting mode, shutdown, leaving the main line)."""
+        """Leave the ground's management (shunting mode, shutdown, leaving the main line).
+
+        The DEREGISTER_REQUEST leaves now, or, on a connection where nothing of the ground
+        has been accepted yet, as soon as something is (it must echo a ground timestamp).
+        """
         self.state = transition(TRANSITIONS, self.state, _I.DEREGISTER, remote=False)
         self._deregister_reason = DeregisterReason(reason)
-        self._queue(DeregisterRequest(self._deregister_reason), now_s)
-        self._next_request_s = now_s + self.config.timers.resend_interval_s
+        self._requests_sent = 0
+        self._send_request_now(now_s)
 
     def register(self, now_s: float) -> None:
         """Register again after a deregistration (the first one is automatic)."""
         self.state = transition(TRANSITIONS, self.state, _I.REGISTER, remote=False)
-        self._send_register(now_s)
+        self._requests_sent = 0
+        self._send_request_now(now_s)
 
     # --- timers ---------------------------------------------------------------------------------
 
@@ -251,14 +266,8 @@ class OnboardEndpoint(Endpoint):
         if not self._connected:
             return
         timers = self.config.timers
-        if self.state is OnboardState.REGISTERING and now_s >= self._next_request_s:
-            self.counters.resends += 1
-            self._send_register(now_s)
-        elif self.state is OnboardState.DEREGISTERING and now_s >= self._next_request_s:
-            assert self._deregister_reason is not None
-            self.counters.resends += 1
-            self._queue(DeregisterRequest(self._deregister_reason), now_s)
-            self._next_request_s = now_s + timers.resend_interval_s
+        if self.state in (OnboardState.REGISTERING, OnboardState.DEREGISTERING):
+            self._send_request_if_due(now_s)
         elif (
             self.state is OnboardState.REGISTERED
             and self._running_info is not None
@@ -270,20 +279,43 @@ class OnboardEndpoint(Endpoint):
     def _extra_deadline_s(self) -> float | None:
         offset = self.time_offset_s or 0.0  # valid_until is ground time: onboard = + offset
         times = [t.valid_until_s + offset for t in self.active_tsrs.values()]
-        if self.state in (OnboardState.REGISTERING, OnboardState.DEREGISTERING):
+        if (
+            self.state in (OnboardState.REGISTERING, OnboardState.DEREGISTERING)
+            and self._channel.heard_from_peer
+        ):
             times.append(self._next_request_s)
         if self.state is OnboardState.REGISTERED and self._running_info is not None:
             times.append(self._next_running_info_s)
         return min(times) if times else None
 
     def _on_failure(self, now_s: float) -> None:
-        self.state = transition(TRANSITIONS, self.state, _I.LINK_TIMEOUT, remote=False)
+        self.state = transition(TRANSITIONS, self.state, _I.LINK_FAILURE, remote=False)
 
-    def _send_register(self, now_s: float) -> None:
+    def _send_request_now(self, now_s: float) -> None:
+        self._next_request_s = now_s
+        self._send_request_if_due(now_s)
+
+    def _send_request_if_due(self, now_s: float) -> None:
+        """Send (or resend) the REGISTER/DEREGISTER_REQUEST of the current state when due.
+
+        Never before a frame of the ground was accepted on this connection: the request
+        must echo a fresh ground timestamp, so that a withheld copy is refused later (5.3).
+        """
+        if not self._connected or not self._channel.heard_from_peer or now_s < self._next_request_s:
+            return
         c = self.config
-        self._queue(
-            RegisterRequest(c.train_number, c.loco_number, c.driver_id, c.train_length_m), now_s
-        )
+        request: RegisterRequest | DeregisterRequest
+        if self.state is OnboardState.REGISTERING:
+            request = RegisterRequest(c.train_number, c.loco_number, c.driver_id, c.train_length_m)
+        elif self.state is OnboardState.DEREGISTERING:
+            assert self._deregister_reason is not None
+            request = DeregisterRequest(self._deregister_reason)
+        else:
+            return
+        if self._requests_sent:
+            self.counters.resends += 1
+        self._requests_sent += 1
+        self._queue(request, now_s)
         self._next_request_s = now_s + c.timers.resend_interval_s
 
     # --- received messages -------------------------------------------------------------------
@@ -291,6 +323,8 @@ class OnboardEndpoint(Endpoint):
     def _on_message(self, frame: Frame, message: Message, now_s: float) -> None:
         if isinstance(message, Heartbeat):
             self.state = transition(TRANSITIONS, self.state, _I.RECV_HEARTBEAT, remote=True)
+            # the ground's first HEARTBEAT is what a pending request waits for
+            self._send_request_if_due(now_s)
         elif isinstance(message, RegisterResponse):
             accepted = message.result is RegisterResult.ACCEPTED
             trigger = _I.RECV_REGISTER_ACCEPTED if accepted else _I.RECV_REGISTER_REFUSED
@@ -331,10 +365,14 @@ class OnboardEndpoint(Endpoint):
                 self._events.append(DispatchCommandReceived(message))
             self._queue(DispatchAck(message.command_number), now_s)
         elif isinstance(message, TimeCheck):
-            offset = now_s - message.ground_time_s
-            self.time_offset_s = offset
-            self._events.append(TimeChecked(message.ground_time_s, offset))
-            self._queue(TimeOffsetReport(message.ground_time_s, now_s, offset), now_s)
+            # whole us, so the offset sent is exactly onboard time - ground time (6.6)
+            report = TimeOffsetReport.from_us(
+                round(message.ground_time_s * 1e6), round(now_s * 1e6)
+            )
+            self.time_offset_s = report.offset_s
+            self._channel.set_peer_clock_ahead(-report.offset_us)
+            self._events.append(TimeChecked(message.ground_time_s, report.offset_s))
+            self._queue(report, now_s)
         else:
             assert isinstance(message, StationStops | RunningTimes)
             self._deliver_data(frame, message)

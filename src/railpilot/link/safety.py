@@ -4,8 +4,10 @@
 (sequence number, strictly rising timestamp, echo, MAC, CRC, stuffing) and runs every
 check on incoming ones in the order of docs/protocol.md section 5.4: framing, version,
 length, CRC, flags, type, body length, direction, destination, source, MAC, body fields,
-sequence (repeat / reorder), timestamp (newer than the last of that type), delay (echoed
-timestamp within ``max_round_trip_s``). The *state* check is the endpoint's.
+sequence (repeat / reorder), timestamp (newer than the last of that type, not before the
+receiver started, not implausibly far ahead of the receiver's clock), delay (echo 0 only on a
+HEARTBEAT at connection set-up; otherwise the echo is a timestamp the receiver sent on this
+connection, at most ``max_round_trip_s`` old). The *state* check is the endpoint's.
 
 A frame changes no state until it passed all of them. A sequence *gap* is not a rejection:
 the frame is accepted and the gap counted (frames were deleted on the way).
@@ -114,6 +116,7 @@ class SecureChannel:
         keys: KeyStore | None,
         require_auth: bool,
         max_round_trip_s: float,
+        max_clock_skew_s: float,
         history_for: Callable[[int], PeerHistory],
         peer_id: int | None = None,
         key_train_id: int | None = None,
@@ -125,6 +128,7 @@ class SecureChannel:
         self._keys = keys
         self._require_auth = require_auth
         self._max_rtt_us = round(max_round_trip_s * 1e6)
+        self._max_skew_us = round(max_clock_skew_s * 1e6)
         self._history_for = history_for
         self._key_train_id = key_train_id
         self.counters = counters if counters is not None else LinkCounters()
@@ -133,17 +137,45 @@ class SecureChannel:
             for t, cls in MESSAGE_CLASSES.items()
             if cls.DIRECTION in (inbound, LinkDirection.BOTH)
         )
-        self.new_connection()
+        self.new_connection(0.0)
 
     # --- connection lifecycle -------------------------------------------------------------
 
-    def new_connection(self) -> None:
-        """Restart sequence numbering both ways (each TCP connection starts at 0)."""
+    def new_connection(self, now_s: float) -> None:
+        """Start a connection at ``now_s``: sequence numbers, echoes and offset start afresh."""
         self._tx_sequence = 0
         self._rx_next = 0
         self._rx_seen: set[int] = set()
         # The echo is per connection: a fresh peer endpoint has sent nothing we could echo.
         self._rx_newest_us = 0
+        # Our first and newest timestamp on this connection: a valid echo lies between them,
+        # so no frame made for another connection (or before it) passes the delay check.
+        self._tx_first_us = 0
+        self._tx_last_us = 0
+        self._started_us = int(now_s * 1e6)
+        # Set once the peer echoed one of our timestamps: from then on it has heard from us
+        # and never sends echo 0 again on this connection.
+        self._peer_echoed = False
+        # The peer's clock minus ours as the last time check on this connection measured it
+        # [us]; None until then (the looser ``max_clock_skew_s`` bound applies).
+        self._peer_clock_ahead_us: int | None = None
+
+    @property
+    def heard_from_peer(self) -> bool:
+        """True once a frame of the peer was accepted on this connection (we can echo it)."""
+        return self._rx_newest_us != 0
+
+    def set_peer_clock_ahead(self, ahead_us: int) -> None:
+        """Record the peer's clock minus ours [us], as a time check measured it (8.5)."""
+        self._peer_clock_ahead_us = int(ahead_us)
+
+    def latest_plausible_timestamp_us(self, now_s: float) -> int:
+        """The newest timestamp a genuine frame of the peer can carry at ``now_s`` (5.2)."""
+        now_us = int(now_s * 1e6)
+        if self._peer_clock_ahead_us is None:
+            return now_us + self._max_skew_us
+        # The measured offset holds one transmission delay (at most a round trip); allow it.
+        return now_us + self._peer_clock_ahead_us + self._max_rtt_us
 
     # --- send -------------------------------------------------------------------------------
 
@@ -157,10 +189,20 @@ class SecureChannel:
             )
         # Strictly rising timestamps, even if the clock did not advance (or went back),
         # so the receiver's "newer than last" rule never drops a good frame.
+        echo = self._rx_newest_us
+        if echo == 0 and message.TYPE is not MessageType.HEARTBEAT:
+            # Only a HEARTBEAT may carry echo 0 (5.3): anything else waits until the peer
+            # has been heard on this connection, so that its echo proves it is fresh.
+            raise LocalProtocolError(
+                f"{message.TYPE.name} cannot be sent before a frame of the peer was accepted "
+                "on this connection (only a HEARTBEAT may carry echo 0)"
+            )
         history = self._history_for(self.peer_id)
         ts = max(int(now_s * 1e6), history.last_sent_timestamp_us + 1)
         history.last_sent_timestamp_us = ts
-        echo = self._rx_newest_us
+        if self._tx_first_us == 0:
+            self._tx_first_us = ts
+        self._tx_last_us = ts
         key_id, key = 0, None
         if self._keys is not None:
             active = self._keys.active(self._key_train())
@@ -233,16 +275,16 @@ class SecureChannel:
                 f"timestamp {frame.timestamp_us} us is before the receiver started "
                 f"({history.not_before_us} us, less the replay window): a replayed frame"
             )
-        echo = frame.echo_timestamp_us
-        if echo:
-            if echo > history.last_sent_timestamp_us:
-                raise DelayError(f"echoed timestamp {echo} us was never sent")
-            age_us = int(now_s * 1e6) - echo
-            if age_us > self._max_rtt_us:
-                raise DelayError(
-                    f"echoed timestamp is {age_us / 1e6:.3f} s old "
-                    f"(limit {self._max_rtt_us / 1e6:.3f} s)"
-                )
+        now_us = int(now_s * 1e6)
+        latest_us = self.latest_plausible_timestamp_us(now_s)
+        if frame.timestamp_us > latest_us:
+            # Accepting it would make every later genuine frame "not newer" (a lock-out).
+            raise TimestampError(
+                f"timestamp {frame.timestamp_us} us is implausible: "
+                f"{(frame.timestamp_us - now_us) / 1e6:.3f} s ahead of the receiver's clock "
+                f"(at most {(latest_us - now_us) / 1e6:.3f} s allowed)"
+            )
+        self._check_echo(mtype, frame.echo_timestamp_us, now_us)
         # All checks passed: commit.
         self._rx_next = seq + 1
         self._rx_seen.add(seq)
@@ -254,7 +296,36 @@ class SecureChannel:
             history.newest_timestamp_us = frame.timestamp_us
         if frame.timestamp_us > self._rx_newest_us:
             self._rx_newest_us = frame.timestamp_us
+        if frame.echo_timestamp_us:
+            self._peer_echoed = True
         return frame, message, lost
+
+    def _check_echo(self, mtype: int, echo: int, now_us: int) -> None:
+        """The delay check (5.3): every accepted frame is fresh, whatever its echo."""
+        if echo == 0:
+            # A frame with echo 0 proves nothing about its age, so it may only be the
+            # content-free HEARTBEAT that opens a connection, and only at set-up.
+            if mtype != MessageType.HEARTBEAT:
+                raise DelayError(
+                    f"echo 0 on a {MessageType(mtype).name}: only a HEARTBEAT may carry "
+                    "echo 0, before its sender has heard from the receiver"
+                )
+            if self._peer_echoed:
+                raise DelayError("echo 0 after the peer has echoed us on this connection")
+            if now_us - self._started_us > self._max_rtt_us:
+                raise DelayError(
+                    f"echo 0 more than {self._max_rtt_us / 1e6:.3f} s after the connection "
+                    "started (the set-up window)"
+                )
+            return
+        if not self._tx_first_us <= echo <= self._tx_last_us or self._tx_first_us == 0:
+            raise DelayError(f"echoed timestamp {echo} us was not sent on this connection")
+        age_us = now_us - echo
+        if age_us > self._max_rtt_us:
+            raise DelayError(
+                f"echoed timestamp is {age_us / 1e6:.3f} s old "
+                f"(limit {self._max_rtt_us / 1e6:.3f} s)"
+            )
 
     def _authenticate(self, raw: bytes, frame: Frame) -> None:
         if frame.mac is None:

@@ -57,6 +57,7 @@ from railpilot.link import (
 from railpilot.link.framing import ABSOLUTE_MAX_FRAME_LENGTH
 
 from .logfmt import kv
+from .rejections import RejectionLog
 from .timers import TickScheduler
 
 log = logging.getLogger("railpilot.net.client")
@@ -156,6 +157,8 @@ class OnboardClient:
         self.scheduled_s: float | None = None
         self._transport: asyncio.Transport | None = None
         self._lost: asyncio.Event | None = None
+        # rejection log lines of the current connection, rate-limited per check
+        self._rejections = RejectionLog(log)
         self._deregistered: asyncio.Event | None = None
         self._registered = asyncio.Event()
         self._listeners: list[OnboardListener] = []
@@ -231,6 +234,7 @@ class OnboardClient:
             return False
         assert isinstance(transport, asyncio.Transport)
         self._transport = transport
+        self._rejections = RejectionLog(log)
         self.connects += 1
         now = time.time()
         self.endpoint.connection_made(now)
@@ -277,6 +281,7 @@ class OnboardClient:
         self._registered.clear()
         if self.endpoint.state is not OnboardState.DISCONNECTED:
             self.endpoint.connection_lost(now)
+        self._rejections.close(train=self.config.train_id)
         kv(log, logging.INFO, "disconnected", train=self.config.train_id, error=exc or "")
         if self._lost is not None:
             self._lost.set()
@@ -380,14 +385,7 @@ class OnboardClient:
         elif isinstance(event, TimeChecked):
             kv(log, logging.DEBUG, "time_check", train=train, offset_s=event.offset_s)
         elif isinstance(event, FrameRejected):
-            kv(
-                log,
-                logging.WARNING,
-                "frame_rejected",
-                train=train,
-                check=event.check.value,
-                detail=event.detail,
-            )
+            self._rejections.record(event, now_s, train=train)
         elif isinstance(event, SequenceGap):
             kv(log, logging.WARNING, "sequence_gap", train=train, lost=event.lost)
         elif isinstance(event, LinkFailed):

@@ -16,7 +16,8 @@ What the server adds on top of the core:
 * a :class:`TrainView` per train: registrations, the latest running info and when it came;
 * deliveries for trains that are offline go into their record and leave on the next
   registration (the core re-sends everything pending then);
-* key=value logging of every registration, acknowledgement, rejection and failure;
+* key=value logging of every registration, acknowledgement and failure, and of frame
+  rejections rate-limited per connection and check (:mod:`railpilot.net.rejections`);
 * graceful shutdown: stop listening, close every connection, stop the timer.
 """
 
@@ -62,6 +63,7 @@ from railpilot.link import (
 from railpilot.link.config import REPLAY_WINDOW_S
 
 from .logfmt import kv
+from .rejections import RejectionLog
 from .timers import TickScheduler
 
 log = logging.getLogger("railpilot.net.server")
@@ -124,6 +126,7 @@ class GroundConnection(asyncio.Protocol):
         self.transport: asyncio.Transport | None = None
         self.peer = "?"
         self.scheduled_s: float | None = None
+        self.rejections = RejectionLog(log)
         self._lost = False
 
     # --- asyncio.Protocol -------------------------------------------------------------------
@@ -156,6 +159,7 @@ class GroundConnection(asyncio.Protocol):
         self.endpoint.connection_lost(now)
         self.server.scheduler.cancel(self)
         self.server._on_closed(self)
+        self.rejections.close(train=self.endpoint.train_id, peer=self.peer)
         kv(
             log,
             logging.INFO,
@@ -556,17 +560,7 @@ class GroundServer:
             fields = {k: getattr(v, "name", v) for k, v in fields.items()}
             kv(log, logging.INFO, _EVENT_NAMES[type(event)], **fields)
         elif isinstance(event, FrameRejected):
-            kv(
-                log,
-                logging.WARNING,
-                "frame_rejected",
-                train=train_id,
-                check=event.check.value,
-                detail=event.detail,
-                claimed_type=event.message_type,
-                claimed_source=event.source_id,
-                claimed_seq=event.sequence,
-            )
+            conn.rejections.record(event, now_s, train=train_id, peer=conn.peer)
         elif isinstance(event, SequenceGap):
             kv(log, logging.WARNING, "sequence_gap", train=train_id, lost=event.lost)
         elif isinstance(event, PeriodicTimedOut):
