@@ -158,3 +158,87 @@ def test_bad_parameter_raises_config_error_naming_it(name, value):
     with pytest.raises(ConfigError) as info:
         EPBrake(**{name: value})
     assert info.value.field == f"brake.{name}"
+
+
+# --- speeding back above the changeover speed (issue 9 item 7a) -------------------------
+#
+# A train that falls below the changeover speed and then speeds back up (a down-grade)
+# must get its electric brake back as a ramp, and the next fall must be a new fade with
+# its pre-notice, never a cut: the fade state used to stay set, so the second fall found
+# an envelope that had run out long ago and dropped ~200 kN in one 10 ms step.
+
+CO = 6.0 / 3.6  # changeover [m/s]
+#: speed [m/s] against time [s] from t0: below changeover, back above, below again
+SPEED_BACK_UP = {
+    # fully faded before the speed rises again
+    "after the fade": [(0.0, 2.5), (4.0, 1.3), (8.0, 2.3), (16.0, 0.0)],
+    # rises in the middle of the fade-out
+    "during the fade": [(0.0, 2.5), (3.5, 1.5), (5.0, 2.3), (14.0, 0.0)],
+    # rises again during the pre-notice, before traction began to fade
+    "during the pre-notice": [(0.0, 2.5), (3.0, 1.6), (3.3, 2.0), (12.0, 0.0)],
+}
+
+
+def speed_profile(points):
+    times, speeds = zip(*points, strict=True)
+    return lambda k: float(np.interp(k * DT, times, speeds))
+
+
+def settled_all_electric(brake, demand=200e3):
+    """The brake state after 20 s all-electric at 2.5 m/s (above changeover)."""
+    e, _, _, state = run_brake(brake, demand, 2.5, 2000)
+    assert_allclose(e[-1], demand, rtol=1e-9)
+    return state
+
+
+@pytest.mark.parametrize("case", SPEED_BACK_UP)
+def test_brake_force_jerk_stays_within_the_jerk_limit_when_speed_returns(case):
+    # held demand: whatever the changeover does, |d(E + A g)/dt| / m_eff <= jerk limit
+    brake = EPBrake()
+    state = settled_all_electric(brake)
+    speed = speed_profile(SPEED_BACK_UP[case])
+    e, air, _, _ = run_brake(brake, 200e3, speed, 1800, state=state, t0=20.0)
+    jerk = np.abs(np.diff(e + air)) / DT / M_EFF
+    assert jerk.max() <= brake.jerk_limit_mps3
+    # and the electric brake itself never moves faster than the fade rate
+    assert np.abs(np.diff(e)).max() / DT <= brake.fade_rate_n_per_s * (1 + 1e-9)
+    assert e[-1] == 0.0  # faded out for good at the stop
+
+
+def test_electric_brake_returns_as_a_ramp_at_the_fade_rate():
+    brake = EPBrake()
+    state = settled_all_electric(brake)
+    speed = speed_profile(SPEED_BACK_UP["after the fade"])
+    e, _, _, (s, _) = run_brake(brake, 200e3, speed, 1000, state=state, t0=20.0)
+    # below from 2.78 s: pre-notice to 3.43 s, 200 kN at 300 kN/s gone by 4.1 s
+    k_up = int(np.argmax([speed(k) > CO for k in range(300, 1000)])) + 300
+    assert np.all(e[420:k_up] == 0.0)  # faded out while below
+    rise = np.diff(e[k_up:]) / DT
+    assert rise.max() <= brake.fade_rate_n_per_s * (1 + 1e-9)
+    assert_allclose(e[-1], 200e3, rtol=1e-5)  # all of it back (behind the 0.3 s lag)
+    assert s[ep_blend.S_PHASE] == ep_blend.PHASE_NORMAL
+
+
+def test_second_fall_below_changeover_is_a_new_fade_with_its_prenotice():
+    brake = EPBrake()
+    state = settled_all_electric(brake)
+    points = SPEED_BACK_UP["after the fade"]
+    speed = speed_profile(points)
+    e, _, _, _ = run_brake(brake, 200e3, speed, 1400, state=state, t0=20.0)
+    k_down = int(np.argmax([speed(k) <= CO for k in range(900, 1400)])) + 900
+    assert_allclose(e[k_down - 1], 200e3, rtol=1e-6)
+    # pre-notice: traction holds the electric brake for 0.65 s ...
+    assert_allclose(e[k_down : k_down + 65], e[k_down - 1], rtol=1e-9)
+    # ... then fades it at 300 kN/s, never in one step
+    slope = np.diff(e[k_down + 70 : k_down + 120]) / DT
+    assert_allclose(slope, -brake.fade_rate_n_per_s, rtol=1e-6)
+
+
+def test_air_is_released_only_as_electric_returns():
+    # above changeover again, the air command never drops below demand - electric
+    brake = EPBrake(air_lag_s=0.0)  # air = command * g, so the command is visible
+    state = settled_all_electric(brake)
+    speed = speed_profile(SPEED_BACK_UP["after the fade"])
+    e, air, _, _ = run_brake(brake, 200e3, speed, 900, state=state, t0=20.0)
+    ratio = np.array([friction_ratio(speed(k) * 3.6) for k in range(900)])
+    assert np.all(air / ratio >= 200e3 - e - 1e-6)

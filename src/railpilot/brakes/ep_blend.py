@@ -20,6 +20,15 @@ pre-notice the brake manager starts ramping air in at the same rate, so that air
 simply fills what electric no longer delivers, a lag late. A slide cut-out removes
 one motor car's share of electric brake at once at ``cutout_time_s``; air takes it
 over through the same path.
+
+If the train speeds back above the changeover speed (a down-grade), the fade is
+called off: traction ramps its electric brake envelope back up at the fade rate from
+wherever the fade had taken it, the brake manager ramps its expectation of electric
+back at the same rate, and air is released only as electric is actually delivered
+(never ahead of it). Once the expectation has reached what electric can give, the
+brake is back in its normal state, so the next fall below the changeover speed starts
+a new fade -- a new pre-notice from the electric brake delivered then, and a ramp at
+the fade rate -- never a cut. The phases (``PHASE_*``) are in ``state[S_PHASE]``.
 """
 
 from __future__ import annotations
@@ -52,8 +61,13 @@ from railpilot.units import KMH_PER_MPS
     P_BUF_LEN,
 ) = range(16)
 N_PARAMS = 16
-S_K, S_FCMD, S_E, S_A, S_ENV0, S_FADING, S_T0 = range(7)
-N_STATE = 7
+S_K, S_FCMD, S_E, S_A, S_ENV0, S_PHASE, S_T0, S_EXP0 = range(8)
+N_STATE = 8
+#: ``state[S_PHASE]``: electric brake unrestricted; fading out below the changeover
+#: speed (pre-notice at ``S_T0``); returning after the speed rose back above it (since
+#: ``S_T0``). ``S_ENV0`` and ``S_EXP0``: traction's envelope and the brake manager's
+#: expected electric when the current phase began [N].
+PHASE_NORMAL, PHASE_FADING, PHASE_RETURNING = 0.0, 1.0, 2.0
 
 
 #: longest delay, lag or pre-notice the EP brake model accepts [s]
@@ -178,8 +192,27 @@ def ep_brake_step(
 ) -> tuple[float, float]:
     """Advance the blended brake one step; return (electric [N], air shoe force [N]).
 
-    ``state = [k, F_cmd, E, A, E at pre-notice, fading flag, pre-notice time]``; ``buffer`` has
+    ``state = [k, F_cmd, E, A, envelope at phase start, phase, phase start time, expected
+    electric at phase start]`` (``S_*``; all zeros is the initial state); ``buffer`` has
     ``delay steps + 1`` slots.
+
+    Notes
+    -----
+    The changeover is a three-phase machine on ``state[S_PHASE]``:
+
+    * ``PHASE_NORMAL``: no envelope; at ``v <= v_co`` -> ``PHASE_FADING`` with the
+      envelope and the expectation starting from the electric brake delivered then;
+    * ``PHASE_FADING`` (pre-notice at ``t0``): the brake manager expects
+      ``E0 - r (t - t0)``, traction allows ``E0 - r max(t - t0 - prenotice, 0)``; at
+      ``v > v_co`` -> ``PHASE_RETURNING`` from both values at that instant;
+    * ``PHASE_RETURNING`` (from ``t0``): both rise at ``r`` from where they were; at
+      ``v <= v_co`` -> ``PHASE_FADING`` again (a new pre-notice); once the expectation
+      reaches the available electric brake -> ``PHASE_NORMAL``.
+
+    Envelope and expectation move at ``r`` (``fade_rate_n_per_s``) in every phase and
+    are continuous across the transitions, so electric never steps (except a cut-out,
+    which is one), and air, commanded to ``F_cmd - min(E, expected)``, never steps
+    either: with a held demand the brake force changes at most ``r g(v)`` per second.
     """
     length = int(p[P_BUF_LEN])
     k = int(state[S_K])
@@ -203,17 +236,44 @@ def ep_brake_step(
     if t >= p[P_CUT_T]:
         cars_in -= p[P_CUT_CARS]
     e_avail = min(p[P_E_FMAX], p[P_E_PMAX] / v) * cars_in / p[P_CARS]
-    # what the brake manager expects electric to deliver during the fade
-    e_expected = np.inf
-    if speed_mps <= p[P_V_CO]:
-        if state[S_FADING] < 0.5:
-            state[S_FADING] = 1.0
-            state[S_ENV0] = state[S_E]
-            state[S_T0] = t
+    rate = p[P_FADE]
+    below = speed_mps <= p[P_V_CO]
+    phase = state[S_PHASE]
+    if phase == PHASE_FADING and not below:
+        # the train sped back above changeover: the fade is called off where it stands
         elapsed = t - state[S_T0]
-        e_expected = max(state[S_ENV0] - p[P_FADE] * elapsed, 0.0)
-        traction_env = max(state[S_ENV0] - p[P_FADE] * max(elapsed - p[P_PRENOTICE], 0.0), 0.0)
+        env = max(state[S_ENV0] - rate * max(elapsed - p[P_PRENOTICE], 0.0), 0.0)
+        state[S_EXP0] = max(state[S_EXP0] - rate * elapsed, 0.0)
+        state[S_ENV0] = env
+        state[S_T0] = t
+        phase = PHASE_RETURNING
+    elif phase != PHASE_FADING and below:
+        # traction's pre-notice: fade out from the electric brake delivered now; the
+        # brake manager's expectation starts there too, or lower if it was still
+        # returning (air then never steps down)
+        expected_now = np.inf
+        if phase == PHASE_RETURNING:
+            expected_now = state[S_EXP0] + rate * (t - state[S_T0])
+        state[S_ENV0] = state[S_E]
+        state[S_EXP0] = min(state[S_E], expected_now)
+        state[S_T0] = t
+        phase = PHASE_FADING
+    # what the brake manager expects electric to deliver
+    e_expected = np.inf
+    if phase == PHASE_FADING:
+        elapsed = t - state[S_T0]
+        e_expected = max(state[S_EXP0] - rate * elapsed, 0.0)
+        traction_env = max(state[S_ENV0] - rate * max(elapsed - p[P_PRENOTICE], 0.0), 0.0)
         e_avail = min(e_avail, traction_env)
+    elif phase == PHASE_RETURNING:
+        ramp = rate * (t - state[S_T0])
+        e_expected = state[S_EXP0] + ramp
+        if e_expected >= e_avail:
+            phase = PHASE_NORMAL  # electric is fully back: no envelope any more
+            e_expected = np.inf
+        else:
+            e_avail = min(e_avail, state[S_ENV0] + ramp)
+    state[S_PHASE] = phase
     e_cmd = min(f_cmd, e_avail)
     # traction follows its command with a lag, but never above what is available:
     # a cut-out removes a car's share at once and the fade ramps out at its own rate

@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from railpilot.commands._common import log, print_json
+from railpilot.commands._common import file_stem, log, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -68,18 +68,15 @@ def run(args: argparse.Namespace) -> int:
         log(f"{name}: {spec.runs} runs in {stats['wall_s']:.2f} s")
     files = []
     if args.out is not None:
+        from railpilot.report.figure import save_figure
         from railpilot.report.montecarlo_plots import stop_error_histogram
 
         args.out.mkdir(parents=True, exist_ok=True)
-        files.append(
-            str(
-                stop_error_histogram(
-                    results,
-                    args.out / f"{scenario.name}_stop_errors.png",
-                    title=f"{scenario.name}: {spec.runs} runs, seed {spec.seed}",
-                )
-            )
+        figure = stop_error_histogram(
+            results, title=f"{scenario.name}: {spec.runs} runs, seed {spec.seed}"
         )
+        path = args.out / f"{file_stem(scenario.name)}_stop_errors.png"
+        files.append(str(save_figure(figure, path)))
     payload = {
         "scenario": scenario.name,
         "runs": spec.runs,

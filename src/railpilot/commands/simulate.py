@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from railpilot.commands._common import log, print_json
+from railpilot.commands._common import file_stem, log, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -14,7 +14,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "simulate",
         help="run one scenario file",
         description="Run a scenario TOML file and print its metrics; with --out, write the "
-        "time series (CSV and Parquet) and figures.",
+        "time series (CSV and Parquet) and figures, named SCENARIO_CONTROLLER.*.",
     )
     p.add_argument("scenario", type=Path, help="scenario TOML file")
     p.add_argument(
@@ -41,18 +41,21 @@ def run(args: argparse.Namespace) -> int:
     files: list[str] = []
     if args.out is not None:
         from railpilot.report import ep_plots
+        from railpilot.report.figure import save_figure
         from railpilot.units import kmh_to_mps
 
         args.out.mkdir(parents=True, exist_ok=True)
-        stem = result.meta["controller"]
+        controller = result.meta["controller"]
+        stem = file_stem(scenario.name, controller)
         files.append(str(result.to_csv(args.out / f"{stem}.csv")))
         files.append(str(result.to_parquet(args.out / f"{stem}.parquet")))
         co = kmh_to_mps(scenario.changeover_kmh)
-        runs = {stem: result}
-        files.append(
-            str(ep_plots.speed_distance(runs, args.out / f"{stem}_speed_distance.png", co))
-        )
-        files.append(str(ep_plots.speed_error(runs, args.out / f"{stem}_speed_error.png", co)))
+        runs = {controller: result}
+        for figure, kind in (
+            (ep_plots.speed_distance(runs, co), "speed_distance"),
+            (ep_plots.speed_error(runs, co), "speed_error"),
+        ):
+            files.append(str(save_figure(figure, args.out / f"{stem}_{kind}.png")))
     if args.json:
         print_json(
             {
@@ -76,14 +79,15 @@ def _run_eddy(args: argparse.Namespace, data: dict[str, Any]) -> int:
     from railpilot.eddy.scenario import EddyScenario
 
     scenario = EddyScenario.from_mapping(data, base_dir=args.scenario.parent)
+    # metrics from every step; the series kept every ``record_every``-th step
     result, metrics = scenario.run(args.controller)
+    controller = args.controller or scenario.controller
     files: list[str] = []
     if args.out is not None:
         args.out.mkdir(parents=True, exist_ok=True)
-        path = args.out / f"{scenario.name}.csv"
+        path = args.out / f"{file_stem(scenario.name, controller)}.csv"
         result.to_pandas().to_csv(path)
         files.append(str(path))
-    controller = args.controller or scenario.controller
     values = metrics.to_dict()
     if args.json:
         print_json(

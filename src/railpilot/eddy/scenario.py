@@ -10,7 +10,7 @@ except ``torque_demand_nm`` and ``initial_speed_kmh``; defaults = the documented
     initial_speed_kmh = 160
     duration_s = 100
     dt_s = 1e-4
-    record_every = 10
+    record_every = 10              # thins the stored series; metrics use every step
     controller = "fuzzy_pi"        # open_loop | pid | fuzzy | fuzzy_pi
 
     [pid]       kp, ki, kd, derivative_filter_s
@@ -296,9 +296,15 @@ class EddyScenario:
     ) -> tuple[EddyResult, StepMetrics]:
         """Simulate with ``controller`` (default: the scenario's) and compute the metrics.
 
+        The metrics always see every step (the chopper ripple and the peak live between
+        recorded samples otherwise); ``record_every`` (default: the scenario's) only thins
+        the returned series, for storage and plots.
         The steady window ends at ``metrics.steady_end_speed_kmh`` or 10 km/h above the
         speed where the current limit makes the demand unreachable, whichever is higher.
         """
+        stride = self.record_every if record_every is None else int(record_every)
+        if stride < 1:
+            raise ScenarioError("record_every", record_every, "an integer >= 1")
         table = self.build_table()
         ctrl = self.make_controller(controller or self.controller, table)
         result = simulate_eddy(
@@ -310,7 +316,7 @@ class EddyScenario:
             train=self.train,
             duration_s=self.duration_s,
             dt_s=self.dt_s,
-            record_every=self.record_every if record_every is None else record_every,
+            record_every=1,
         )
         limit_kmh = self.holdable_down_to_kmh(table)
         end_kmh = self.metrics["steady_end_speed_kmh"]
@@ -328,4 +334,4 @@ class EddyScenario:
         )
         result.metadata["scenario"] = self.name
         result.metadata["holdable_down_to_kmh"] = limit_kmh
-        return result, metrics
+        return (result.every(stride) if stride > 1 else result), metrics

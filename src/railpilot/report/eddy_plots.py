@@ -3,13 +3,13 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
 from railpilot.eddy.simulate import EddyResult
 
@@ -27,11 +27,9 @@ STYLES: dict[str, dict[str, Any]] = {
 }
 
 
-def plot_torque_vs_speed(
-    results: Mapping[str, EddyResult], demand_nm: float, title: str, path: Path
-) -> Path:
+def plot_torque_vs_speed(results: Mapping[str, EddyResult], demand_nm: float, title: str) -> Figure:
     """Fig. 7: braking torque against train speed (speed falls from right to left)."""
-    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(7.5, 4.2), constrained_layout=True, dpi=130)
     for name, res in results.items():
         ax.plot(res.speed_kmh, res.torque_nm, lw=1.0, label=LABELS.get(name, name), **STYLES[name])
     ax.axhline(demand_nm, color="k", lw=0.6, ls=":", label=f"demand {demand_nm:.0f} N m")
@@ -42,20 +40,14 @@ def plot_torque_vs_speed(
     ax.set_ylim(0, demand_nm * 1.2)
     ax.grid(alpha=0.3)
     ax.legend(loc="lower right", fontsize=8)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return fig
 
 
 def plot_torque_vs_time(
-    results: Mapping[str, EddyResult],
-    demand_nm: float,
-    title: str,
-    path: Path,
-    zoom_s: float = 1.0,
-) -> Path:
+    results: Mapping[str, EddyResult], demand_nm: float, title: str, zoom_s: float = 1.0
+) -> Figure:
     """Fig. 8: torque against time, whole run (left) and the first ``zoom_s`` s (right)."""
-    fig, (ax, az) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True)
+    fig, (ax, az) = plt.subplots(1, 2, figsize=(11, 4.2), constrained_layout=True, dpi=130)
     for name, res in results.items():
         style = STYLES[name]
         label = LABELS.get(name, name)
@@ -72,20 +64,16 @@ def plot_torque_vs_time(
     az.set_title(f"first {zoom_s:g} s (demand dotted)")
     az.set_xlim(0, zoom_s)
     ax.legend(loc="lower left", fontsize=8)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return fig
 
 
-def plot_settled_ripple(
-    results: Mapping[str, EddyResult], demand_nm: float, title: str, path: Path
-) -> Path:
+def plot_settled_ripple(results: Mapping[str, EddyResult], demand_nm: float, title: str) -> Figure:
     """A short full-resolution window of the settled torque: the chopper ripple.
 
     Each result must carry ``metadata["ripple"] = (time_s, torque_nm)`` sampled at
     every step (thinned series would alias the kilohertz ripple).
     """
-    fig, ax = plt.subplots(figsize=(7.5, 3.6), constrained_layout=True)
+    fig, ax = plt.subplots(figsize=(7.5, 3.6), constrained_layout=True, dpi=130)
     start_s = 0.0
     for name, res in results.items():
         if name == "open_loop" or "ripple" not in res.metadata:
@@ -102,6 +90,4 @@ def plot_settled_ripple(
     ax.grid(alpha=0.3)
     if ax.get_legend_handles_labels()[0]:
         ax.legend(loc="upper right", fontsize=8)
-    fig.savefig(path, dpi=130)
-    plt.close(fig)
-    return path
+    return fig

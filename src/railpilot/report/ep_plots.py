@@ -3,15 +3,16 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from railpilot.sim.result import SimResult
+from railpilot.units import mps_to_kmh
 
 COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green"}
 
@@ -24,9 +25,17 @@ def _moving(result: SimResult) -> np.ndarray:
     return np.arange(end)
 
 
-def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps: float) -> Path:
-    """Fig. 4: speed over distance to go, with the target curve and a zoom on the stop."""
-    fig, (ax, zoom) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=[2, 1])
+def _kmh_text(speed_mps: float) -> str:
+    """A speed for a title: ``6 km/h``, ``7.5 km/h``."""
+    return f"{float(mps_to_kmh(speed_mps)):.3g} km/h"
+
+
+def speed_distance(results: Mapping[str, SimResult], changeover_mps: float) -> Figure:
+    """Fig. 4: speed over distance to go, with the target curve and a zoom on the stop.
+
+    ``changeover_mps``: the scenario's electric/air changeover speed [m/s], drawn dotted.
+    """
+    fig, (ax, zoom) = plt.subplots(1, 2, figsize=(11, 4.2), width_ratios=[2, 1], dpi=110)
     first = next(iter(results.values()))
     stop_m = first.meta["stop_point_m"]
     for name, r in results.items():
@@ -43,7 +52,7 @@ def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps:
     ref_v = first["ref_speed_mps"] * 3.6
     for a in (ax, zoom):
         a.plot(ref_x, ref_v, "k--", lw=1, label="target curve" if a is ax else None)
-        a.axhline(changeover_mps * 3.6, color="grey", lw=0.6, ls=":")
+        a.axhline(float(mps_to_kmh(changeover_mps)), color="grey", lw=0.6, ls=":")
         a.grid(alpha=0.3)
         a.set_xlabel("position relative to the stop point [m]")
     ax.set_ylabel("speed [km/h]")
@@ -52,16 +61,16 @@ def speed_distance(results: Mapping[str, SimResult], path: Path, changeover_mps:
     zoom.set_xlim(-25, 2)
     zoom.set_ylim(0, 12)
     zoom.axvline(0, color="k", lw=0.8)
-    zoom.set_title("Last 25 m (dotted: 6 km/h changeover)")
+    zoom.set_title(f"Last 25 m (dotted: {_kmh_text(changeover_mps)} changeover)")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
 
 
-def deceleration(results: Mapping[str, SimResult], path: Path, limit_mps2: float) -> Path:
+def deceleration(results: Mapping[str, SimResult], limit_mps2: float) -> Figure:
     """Fig. 5: deceleration over time, with the service limit; brake split below."""
-    fig, (ax, split) = plt.subplots(2, 1, figsize=(10, 6.2), sharex=True, height_ratios=[3, 2])
+    fig, (ax, split) = plt.subplots(
+        2, 1, figsize=(10, 6.2), sharex=True, height_ratios=[3, 2], dpi=110
+    )
     first = next(iter(results.values()))
     for name, r in results.items():
         i = _moving(r)
@@ -93,14 +102,16 @@ def deceleration(results: Mapping[str, SimResult], path: Path, limit_mps2: float
     split.legend(ncol=2, fontsize=8)
     split.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
 
 
-def speed_error(results: Mapping[str, SimResult], path: Path, changeover_mps: float) -> Path:
-    """Fig. 6: speed error ``v - v_ref(t)`` over time, changeover marked."""
-    fig, ax = plt.subplots(figsize=(10, 3.8))
+def speed_error(results: Mapping[str, SimResult], changeover_mps: float) -> Figure:
+    """Fig. 6: speed error ``v - v_ref(t)`` over time, changeover marked.
+
+    ``changeover_mps``: the scenario's electric/air changeover speed [m/s]; a dotted line
+    marks when each train first reaches it.
+    """
+    fig, ax = plt.subplots(figsize=(10, 3.8), dpi=110)
     for name, r in results.items():
         i = _moving(r)
         err = r["speed_mps"][i] - r["ref_speed_mps"][i]
@@ -112,10 +123,10 @@ def speed_error(results: Mapping[str, SimResult], path: Path, changeover_mps: fl
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("speed error v - v_ref [m/s]")
-    ax.set_title("Speed tracking error (dotted: train reaches the 6 km/h changeover)")
+    ax.set_title(
+        f"Speed tracking error (dotted: train reaches the {_kmh_text(changeover_mps)} changeover)"
+    )
     ax.legend()
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig

@@ -3,23 +3,23 @@
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
+from matplotlib.figure import Figure
 
 from railpilot.report.ep_plots import COLORS
 from railpilot.sim.batch import MonteCarloResult
 
 
 def stop_error_histogram(
-    results: Mapping[str, MonteCarloResult], path: Path, tolerance_m: float = 0.30, title: str = ""
-) -> Path:
+    results: Mapping[str, MonteCarloResult], tolerance_m: float = 0.30, title: str = ""
+) -> Figure:
     """Histograms of signed stop errors per controller: all runs, and a zoom on the band."""
-    fig, (full, zoom) = plt.subplots(1, 2, figsize=(12, 4.2))
+    fig, (full, zoom) = plt.subplots(1, 2, figsize=(12, 4.2), dpi=110)
     finite = {n: r.stop_errors[np.isfinite(r.stop_errors)] for n, r in results.items()}
     all_err = np.concatenate(list(finite.values())) if finite else np.zeros(1)
     span = max(float(np.max(np.abs(all_err))) if all_err.size else 0.0, tolerance_m * 1.2)
@@ -50,6 +50,4 @@ def stop_error_histogram(
     full.legend(fontsize=8)
     fig.suptitle(title or "Stop error distribution")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig

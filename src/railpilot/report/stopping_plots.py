@@ -3,20 +3,20 @@
 from __future__ import annotations
 
 from collections.abc import Mapping, Sequence
-from pathlib import Path
 
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt
+from matplotlib.figure import Figure
 
 from railpilot.report.ep_plots import COLORS, _moving
 from railpilot.sim.result import SimResult
 
 
-def tracking(results: Mapping[str, SimResult], path: Path) -> Path:
+def tracking(results: Mapping[str, SimResult]) -> Figure:
     """Figs. 6-7: speed tracking over time and position error over time."""
-    fig, (speed, pos) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True)
+    fig, (speed, pos) = plt.subplots(2, 1, figsize=(10, 6.5), sharex=True, dpi=110)
     first = next(iter(results.values()))
     for name, r in results.items():
         i = _moving(r)
@@ -38,16 +38,19 @@ def tracking(results: Mapping[str, SimResult], path: Path) -> Path:
         ax.grid(alpha=0.3)
         ax.legend()
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig
 
 
 def position_error_runs(
-    runs: Mapping[str, Sequence[SimResult]], path: Path, tolerance_m: float
-) -> Path:
-    """Fig. 8: displacement error over position for several seeded runs per controller."""
-    fig, axes = plt.subplots(1, len(runs), figsize=(6 * len(runs), 4), sharey=True, squeeze=False)
+    runs: Mapping[str, Sequence[SimResult]], tolerance_m: float, condition: str = ""
+) -> Figure:
+    """Fig. 8: displacement error over position for several seeded runs per controller.
+
+    ``condition``: what the runs have in common, for the titles (e.g. the disturbance).
+    """
+    fig, axes = plt.subplots(
+        1, len(runs), figsize=(6 * len(runs), 4), sharey=True, squeeze=False, dpi=110
+    )
     for ax, (name, results) in zip(axes[0], runs.items(), strict=True):
         for r in results:
             i = _moving(r)
@@ -60,11 +63,10 @@ def position_error_runs(
             )
         ax.axhspan(-tolerance_m, tolerance_m, color="green", alpha=0.08)
         ax.axhline(0, color="k", lw=0.6)
-        ax.set_title(f"{name.upper()}: {len(results)} runs, ±2.3 % random disturbance")
+        title = f"{name.upper()}: {len(results)} runs"
+        ax.set_title(f"{title}, {condition}" if condition else title)
         ax.set_xlabel("reference position [m]")
         ax.grid(alpha=0.3)
     axes[0][0].set_ylabel("displacement error x - x_ref [m]")
     fig.tight_layout()
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return fig

@@ -162,6 +162,7 @@ def run(
         plot_torque_vs_speed,
         plot_torque_vs_time,
     )
+    from railpilot.report.figure import save_figure
 
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -205,19 +206,14 @@ def run(
             )
         )
         title = f"Case {number}: {demand:.0f} N m from {speed:.0f} km/h"
-        figures.append(
-            plot_torque_vs_speed(
-                results, demand, title, out_dir / f"eddy_case{number}_torque_speed.png"
+        for plot, kind in (
+            (plot_torque_vs_speed, "torque_speed"),
+            (plot_torque_vs_time, "torque_time"),
+            (plot_settled_ripple, "ripple"),
+        ):
+            figures.append(
+                save_figure(plot(results, demand, title), out_dir / f"eddy_case{number}_{kind}.png")
             )
-        )
-        figures.append(
-            plot_torque_vs_time(
-                results, demand, title, out_dir / f"eddy_case{number}_torque_time.png"
-            )
-        )
-        figures.append(
-            plot_settled_ripple(results, demand, title, out_dir / f"eddy_case{number}_ripple.png")
-        )
         limit = scenario.holdable_down_to_kmh(scenario.build_table())
         findings.extend(_rank_claims(cases[-1], label))
         open_loop = metrics["open_loop"]

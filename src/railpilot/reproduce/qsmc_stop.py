@@ -130,6 +130,7 @@ def _sweep_row(sigma: float, name: str, result: MonteCarloResult) -> dict[str, A
 def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
     """Run the reproduction, write figures into ``out_dir``, return tables and payload."""
     from railpilot.report import montecarlo_plots, stopping_plots
+    from railpilot.report.figure import save_figure
 
     out_dir.mkdir(parents=True, exist_ok=True)
     started = time.perf_counter()
@@ -151,32 +152,32 @@ def run(out_dir: Path, runs: int = RUNS) -> Reproduction:
     ladder = run_ladder(realistic, realistic_spec(max(runs // 2, 1)), 0.01, CONTROLLERS)
     wall_s = time.perf_counter() - started
 
+    disturbance = f"±{noisy.disturbance.target_fraction * 100:g} % random disturbance"
+    seeded_runs = {
+        name: [
+            simulate(replace(noisy, disturbance=replace(noisy.disturbance, seed=seed)), name)
+            for seed in range(20)
+        ]
+        for name in CONTROLLERS
+    }
+    realistic_title = f"Paper 002 on a real train, time-based reference: {runs} runs per controller"
     figures = [
-        stopping_plots.tracking(single, out_dir / "qsmc_stop_tracking.png"),
-        stopping_plots.position_error_runs(
-            {
-                name: [
-                    simulate(
-                        replace(noisy, disturbance=replace(noisy.disturbance, seed=seed)), name
-                    )
-                    for seed in range(20)
-                ]
-                for name in CONTROLLERS
-            },
+        save_figure(stopping_plots.tracking(single), out_dir / "qsmc_stop_tracking.png"),
+        save_figure(
+            stopping_plots.position_error_runs(seeded_runs, TOLERANCE_M, disturbance),
             out_dir / "qsmc_stop_random_disturbance.png",
-            TOLERANCE_M,
         ),
-        montecarlo_plots.stop_error_histogram(
-            {n: sweep_results[(SIGMAS_S[-1], n)] for n in CONTROLLERS},
+        save_figure(
+            montecarlo_plots.stop_error_histogram(
+                {n: sweep_results[(SIGMAS_S[-1], n)] for n in CONTROLLERS},
+                TOLERANCE_M,
+                title=f"sigma = {SIGMAS_S[-1]} s, {disturbance}, {runs} runs",
+            ),
             out_dir / "qsmc_stop_sigma_1_35_histogram.png",
-            TOLERANCE_M,
-            title=f"sigma = {SIGMAS_S[-1]} s, ±2.3 % random disturbance, {runs} runs",
         ),
-        montecarlo_plots.stop_error_histogram(
-            real_results,
+        save_figure(
+            montecarlo_plots.stop_error_histogram(real_results, TOLERANCE_M, title=realistic_title),
             out_dir / "qsmc_stop_realistic_histogram.png",
-            TOLERANCE_M,
-            title=f"Paper 002 on a real train, time-based reference: {runs} runs per controller",
         ),
     ]
     results = {

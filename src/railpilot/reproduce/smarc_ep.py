@@ -155,6 +155,7 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
     ``runs``: Monte Carlo runs of the realistic study per controller.
     """
     from railpilot.report import ep_plots, montecarlo_plots
+    from railpilot.report.figure import save_figure
 
     out_dir.mkdir(parents=True, exist_ok=True)
     nominal = nominal_scenario()
@@ -170,14 +171,21 @@ def run(out_dir: Path, runs: int = REALISTIC_RUNS) -> Reproduction:
     wall_s = time.perf_counter() - started
     changeover = kmh_to_mps(paper.changeover_kmh)
     limit = paper.train.max_service_decel_mps2
+    realistic_title = f"Paper 000 on a real train, time-based reference: {runs} runs per controller"
     figures = [
-        ep_plots.speed_distance(paper_runs, out_dir / "smarc_ep_speed_distance.png", changeover),
-        ep_plots.deceleration(paper_runs, out_dir / "smarc_ep_deceleration.png", limit),
-        ep_plots.speed_error(paper_runs, out_dir / "smarc_ep_speed_error.png", changeover),
-        montecarlo_plots.stop_error_histogram(
-            real,
+        save_figure(
+            ep_plots.speed_distance(paper_runs, changeover),
+            out_dir / "smarc_ep_speed_distance.png",
+        ),
+        save_figure(
+            ep_plots.deceleration(paper_runs, limit), out_dir / "smarc_ep_deceleration.png"
+        ),
+        save_figure(
+            ep_plots.speed_error(paper_runs, changeover), out_dir / "smarc_ep_speed_error.png"
+        ),
+        save_figure(
+            montecarlo_plots.stop_error_histogram(real, title=realistic_title),
             out_dir / "smarc_ep_realistic_histogram.png",
-            title=f"Paper 000 on a real train, time-based reference: {runs} runs per controller",
         ),
     ]
     real_stats = {name: public_stats(r) for name, r in real.items()}
