@@ -12,8 +12,11 @@ import platform
 import statistics
 import time
 
+from railpilot.brakes.registry import brake_entry_of
+from railpilot.control.user import bind
 from railpilot.reproduce.smarc_ep import paper_scenario
-from railpilot.sim.run import make_controller, prepare, run_inputs, simulate
+from railpilot.sim.inputs import run_inputs
+from railpilot.sim.run import make_controller, run_once, simulate
 
 
 def main() -> None:
@@ -29,9 +32,11 @@ def main() -> None:
         t0 = time.perf_counter()
         simulate(scenario, "smarc")  # everything: packing, kernel, recording 7000 samples
         full.append(time.perf_counter() - t0)
-        inputs = prepare(scenario, make_controller(scenario, "smarc"))
+        binding = bind(make_controller(scenario, "smarc"))
+        inputs = run_inputs(scenario, binding)
+        brake_step = brake_entry_of(scenario.brake).step
         t0 = time.perf_counter()
-        run_inputs(inputs)  # the compiled kernel alone, metrics only
+        run_once(inputs, binding, brake_step)  # the compiled kernel alone, metrics only
         kernel.append(time.perf_counter() - t0)
     print(
         json.dumps(

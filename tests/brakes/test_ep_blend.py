@@ -20,7 +20,7 @@ F_MAX, P_MAX = 380e3, 4.8e6  # default electric envelope [N], [W]
 
 def run_brake(brake, demand, speed, n, cars=4, f_max=F_MAX, p_max=P_MAX, state=None, t0=0.0):
     """Step the brake ``n`` times; return arrays (electric, air, commanded demand) and state."""
-    p = brake.pack(DT, M_EFF, f_max, p_max, cars)
+    p = brake.pack_arrays(DT, M_EFF, f_max, p_max, cars)
     if state is None:
         state = (np.zeros(ep_blend.N_STATE), np.zeros(int(p[ep_blend.P_BUF_LEN])))
     s, buf = state
@@ -133,13 +133,13 @@ def test_air_ramps_in_while_electric_fades():
 
 def test_non_integer_delay_raises_config_error():
     with pytest.raises(ConfigError) as info:
-        EPBrake(delay_s=0.305).pack(DT, M_EFF, F_MAX, P_MAX, 4)
+        EPBrake(delay_s=0.305).pack_arrays(DT, M_EFF, F_MAX, P_MAX, 4)
     assert info.value.field == "brake.delay_s"
 
 
 def test_cutout_of_more_cars_than_motor_cars_raises():
     with pytest.raises(ConfigError) as info:
-        EPBrake(cutout_cars=5).pack(DT, M_EFF, F_MAX, P_MAX, 4)
+        EPBrake(cutout_cars=5).pack_arrays(DT, M_EFF, F_MAX, P_MAX, 4)
     assert info.value.field == "brake.cutout_cars"
 
 

@@ -140,7 +140,7 @@ def test_command_beyond_the_map_saturates_at_full_brake():
 def test_delay_shorter_than_one_step_is_refused(delay_s):
     # a delay the step cannot resolve (0 < sigma < dt): the step is too long for it
     with pytest.raises(ConfigError, match="at least one simulation step") as info:
-        LagDelayBrake(delay_s=delay_s).pack(DT)
+        LagDelayBrake(delay_s=delay_s).pack_arrays(DT)
     assert info.value.field == "brake.delay_s"
     assert info.value.value == delay_s
 
@@ -152,8 +152,8 @@ def test_delay_shorter_than_one_step_is_refused_before_simulating():
 
 
 def test_zero_delay_and_one_step_delay_are_accepted():
-    assert LagDelayBrake(delay_s=0.0).pack(DT).shape == (6,)
-    assert LagDelayBrake(delay_s=DT).pack(DT).shape == (6,)
+    assert LagDelayBrake(delay_s=0.0).pack_arrays(DT).shape == (6,)
+    assert LagDelayBrake(delay_s=DT).pack_arrays(DT).shape == (6,)
 
 
 @pytest.mark.parametrize(

@@ -34,10 +34,12 @@ the fade rate -- never a cut. The phases (``PHASE_*``) are in ``state[S_PHASE]``
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
 from numba import njit
 
+from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.errors import ConfigError
 from railpilot.units import KMH_PER_MPS
@@ -141,7 +143,29 @@ class EPBrake:
             if value > MAX_TIME_S:
                 raise ConfigError(f"brake.{name}", value, f"a number in [0, {MAX_TIME_S:g}] s")
 
-    def pack(
+    name: ClassVar[str] = "ep-blended"
+
+    @property
+    def lead_s(self) -> tuple[float, float]:
+        """``(delay, lag)`` [s] of the air path (what the ATO must lead)."""
+        return self.delay_s, self.air_lag_s
+
+    def sizes(self, params: np.ndarray) -> tuple[int, int]:
+        """Floats of state and of delay line (brakes/base.py)."""
+        return N_STATE, int(params[P_BUF_LEN])
+
+    def pack(self, context: PackContext) -> np.ndarray:
+        """The kernel's parameters for the context's step, train and load-weighed mass."""
+        eb = context.train.electric_brake
+        return self.pack_arrays(
+            context.dt_s,
+            context.load_weighed_eff_mass_kg,
+            eb.max_force_n,
+            eb.max_power_w,
+            context.train.motor_cars,
+        )
+
+    def pack_arrays(
         self,
         dt: float,
         effective_mass_kg: float,
@@ -286,3 +310,24 @@ def ep_brake_step(
     v_kmh = speed_mps * 3.6
     g = (p[P_B1] * np.exp(-p[P_B2] * v_kmh) + p[P_B3]) / p[P_B3]
     return e, a * g
+
+
+@njit(cache=True)
+def ep_ato_step(
+    p: np.ndarray,
+    state: np.ndarray,
+    buffer: np.ndarray,
+    u: float,
+    speed_mps: float,
+    t: float,
+    dt: float,
+    m_eff_lw: float,
+    m_eff: float,
+) -> tuple[float, float, float]:
+    """The EP brake in the simulator (the step of brakes/base.py).
+
+    The ATO's braking command becomes a force demand through the load-weighed mass.
+    """
+    demand = -u * m_eff_lw if u < 0.0 else 0.0
+    e_n, air_n = ep_brake_step(p, state, buffer, demand, speed_mps, t, dt)
+    return e_n, air_n, demand

@@ -9,14 +9,19 @@ quantisation (railpilot.sim.realism) provides for every brake model.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import ClassVar
 
 import numpy as np
+from numba import njit
 
-from railpilot.brakes.lag_delay import LagDelay
+from railpilot.brakes.base import PackContext
+from railpilot.brakes.lag_delay import E_LEN, LagDelay, lag_delay_exact_step
 from railpilot.errors import ConfigError
 
 #: longest lag or delay a brake model accepts [s]
 MAX_TIME_S = 60.0
+#: index of ``a_max`` [m/s^2] in the packed params (after LagDelay's five)
+LD_A_MAX = 5
 
 
 @dataclass(frozen=True)
@@ -46,7 +51,24 @@ class LagDelayBrake:
         if not (np.isfinite(self.max_decel_mps2) and self.max_decel_mps2 > 0):
             raise ConfigError("brake.max_decel_mps2", self.max_decel_mps2, "a number > 0")
 
-    def pack(self, dt: float) -> np.ndarray:
+    name: ClassVar[str] = "lag-delay"
+    #: no electric brake, so no changeover
+    changeover_kmh: ClassVar[float] = 0.0
+
+    @property
+    def lead_s(self) -> tuple[float, float]:
+        """``(delay, lag)`` [s] (what the ATO must lead)."""
+        return self.delay_s, self.lag_s
+
+    def sizes(self, params: np.ndarray) -> tuple[int, int]:
+        """Floats of state (output, step index) and of delay line (brakes/base.py)."""
+        return 2, int(params[E_LEN])
+
+    def pack(self, context: PackContext) -> np.ndarray:
+        """The kernel's params for the context's step (brakes/base.py)."""
+        return self.pack_arrays(context.dt_s)
+
+    def pack_arrays(self, dt: float) -> np.ndarray:
         """The kernel's params: LagDelay's exact-method params, then ``a_max``."""
         if self.delay_s > 0 and self.delay_s < dt:
             raise ConfigError(
@@ -54,3 +76,26 @@ class LagDelayBrake:
             )
         params = LagDelay(self.lag_s, self.delay_s, dt).params
         return np.append(params, self.max_decel_mps2)
+
+
+@njit(cache=True)
+def lag_delay_ato_step(
+    p: np.ndarray,
+    state: np.ndarray,
+    buffer: np.ndarray,
+    u: float,
+    speed_mps: float,
+    t: float,
+    dt: float,
+    m_eff_lw: float,
+    m_eff: float,
+) -> tuple[float, float, float]:
+    """Paper 002's brake in the simulator (the step of brakes/base.py).
+
+    The ATO's command becomes ``uc = F^-1(u)`` in [0, 1] through the linear map; the
+    delivered deceleration acts on the true effective mass. No electric brake.
+    """
+    uc = min(max(-u / p[LD_A_MAX], 0.0), 1.0)
+    demand = uc * p[LD_A_MAX] * m_eff
+    ac = lag_delay_exact_step(p, state, buffer, -p[LD_A_MAX] * uc)
+    return 0.0, -ac * m_eff, demand

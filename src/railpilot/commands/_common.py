@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import json
 import math
 import re
@@ -49,3 +50,17 @@ def file_stem(*parts: str) -> str:
     """
     cleaned = [re.sub(r"[^A-Za-z0-9._-]+", "-", part).strip("-.") for part in parts]
     return "_".join(c for c in cleaned if c) or "run"
+
+
+def controller_argument(value: str) -> str:
+    """``--controller``: a built-in's name (braking or eddy-brake) or ``module:Name``."""
+    from railpilot.control.registry import CONTROLLERS
+    from railpilot.eddy.scenario import CONTROLLERS as EDDY_CONTROLLERS
+
+    if value in CONTROLLERS or value in EDDY_CONTROLLERS or ":" in value:
+        return value
+    raise argparse.ArgumentTypeError(
+        f"controller = {value!r} is not allowed: expected one of "
+        f"{', '.join(CONTROLLERS)} (braking), {', '.join(EDDY_CONTROLLERS)} (eddy brake), "
+        "or module:Name / path/to/file.py:Name (your own controller, docs/architecture.md)"
+    )

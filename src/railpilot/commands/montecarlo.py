@@ -7,7 +7,7 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from railpilot.commands._common import file_stem, log, print_json
+from railpilot.commands._common import controller_argument, file_stem, log, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -24,8 +24,10 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--controller",
         action="append",
-        choices=("pid", "smarc", "qsmc"),
-        help="controller to sweep; repeat for several (default: the file's)",
+        type=controller_argument,
+        metavar="NAME",
+        help="controller to sweep (pid, smarc, qsmc, or module:Name for your own); "
+        "repeat for several (default: the file's)",
     )
     p.add_argument(
         "--scheduler",

@@ -6,7 +6,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from railpilot.commands._common import file_stem, log, print_json
+from railpilot.commands._common import controller_argument, file_stem, log, print_json
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -19,9 +19,11 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("scenario", type=Path, help="scenario TOML file")
     p.add_argument(
         "--controller",
-        choices=("pid", "smarc", "qsmc", "open_loop", "fuzzy", "fuzzy_pi"),
+        type=controller_argument,
+        metavar="NAME",
         help="override the scenario's controller (pid, smarc, qsmc for braking scenarios; "
-        "open_loop, pid, fuzzy, fuzzy_pi for eddy-brake ones)",
+        "open_loop, pid, fuzzy, fuzzy_pi for eddy-brake ones; module:Name or "
+        "path/to/file.py:Name for your own, docs/architecture.md)",
     )
     p.add_argument("--out", type=Path, help="folder for time series and figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")

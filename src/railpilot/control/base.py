@@ -10,6 +10,20 @@ constructor) and ``state`` (changed by every update), and do their arithmetic in
 Numba ``@njit`` kernel taking ``(params, state, ...)``. The Python object calls
 that kernel, and so does the simulator's compiled inner loop, so there is one
 implementation of every control law.
+
+The simulator's step
+--------------------
+The simulator calls one compiled function per controller, with this signature (the
+*step* of a registry entry, control/registry.py, or of a user's compiled controller)::
+
+    step(params, state, ref_x, ref_v, ref_a, x, v, resist_mps2, u_min, u_max, dt) -> u
+
+``ref_*``: the reference position [m], speed [m/s] and the acceleration the ATO feeds
+forward [m/s^2]; ``x, v``: measured position and speed; ``resist_mps2``: the ATO's model
+of the running resistance as a deceleration [m/s^2] (positive), for a feed-forward;
+``u_min, u_max``: where the ATO will clamp ``u`` [m/s^2]; ``dt``: control period [s]. It
+returns the commanded acceleration ``u`` [m/s^2] (negative brakes) and may change
+``state``, and ``params`` (the simulator passes private copies of both).
 """
 
 from __future__ import annotations

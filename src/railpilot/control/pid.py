@@ -209,8 +209,12 @@ class TrackingPID(PID):
         self.params = np.append(self.params, position_gain)
 
     def update(self, setpoint: Any, measurement: Any, dt: float) -> float:
-        """``setpoint = (x_ref [m], v_ref [m/s])``, ``measurement = (x, v)``."""
-        x_ref, v_ref = setpoint
+        """``setpoint = (x_ref [m], v_ref [m/s][, a_ref])``, ``measurement = (x, v)``.
+
+        A third reference item (the acceleration the simulator hands every controller,
+        control/base.py) is ignored: the ATO feeds it forward outside the PID.
+        """
+        x_ref, v_ref = setpoint[0], setpoint[1]
         x, v = measurement
         return float(
             pid_step(
@@ -230,3 +234,32 @@ def tracking_setpoint(params: np.ndarray, x_ref: float, v_ref: float, x: float) 
 
 
 P_POSITION_GAIN = N_PARAMS
+
+
+@njit(cache=True)
+def pid_ato_step(
+    params: np.ndarray,
+    state: np.ndarray,
+    ref_x: float,
+    ref_v: float,
+    ref_a: float,
+    x: float,
+    v: float,
+    resist_mps2: float,
+    u_min: float,
+    u_max: float,
+    dt: float,
+) -> float:
+    """:class:`TrackingPID` in the simulator (the step of control/base.py).
+
+    The ATO feeds forward the reference acceleration and its resistance model and adds
+    the PID's output; the PID's limits are moved to where the ATO's clamp of the sum
+    lies, so its anti-windup sees the real saturation (a braking-only ATO cannot pull,
+    and an integrator that wants traction would otherwise wind up and release the brake
+    late). ``params`` is changed (the limits): the simulator passes a private copy.
+    """
+    ff = ref_a + resist_mps2
+    params[P_LO] = u_min - ff
+    params[P_HI] = u_max - ff
+    v_set = tracking_setpoint(params, ref_x, ref_v, x)
+    return ff + pid_step(params, state, v_set, v, dt)

@@ -372,3 +372,22 @@ def _check(label: str, value: float, positive: bool = False) -> None:
     if not ok:
         bound = "> 0" if positive else ">= 0"
         raise ValueError(f"{label} = {value!r} is not allowed: expected a finite number {bound}")
+
+
+@njit(cache=True)
+def qsmc_ato_step(
+    params: np.ndarray,
+    state: np.ndarray,
+    ref_x: float,
+    ref_v: float,
+    ref_a: float,
+    x: float,
+    v: float,
+    resist_mps2: float,
+    u_min: float,
+    u_max: float,
+    dt: float,
+) -> float:
+    """:func:`qsmc_step` in the simulator (the step of control/base.py): the ATO adds its
+    resistance model as a feed-forward; the clamp is the ATO's (``u_min``, ``u_max``)."""
+    return qsmc_step(params, state, ref_x, ref_v, ref_a, x, v, dt) + resist_mps2

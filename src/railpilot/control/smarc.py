@@ -240,3 +240,22 @@ class SMARC(Controller):
             "u_reaching": float(self.state[S_UREACH]),
             "u_robust": float(self.state[S_UROB]),
         }
+
+
+@njit(cache=True)
+def smarc_ato_step(
+    params: np.ndarray,
+    state: np.ndarray,
+    ref_x: float,
+    ref_v: float,
+    ref_a: float,
+    x: float,
+    v: float,
+    resist_mps2: float,
+    u_min: float,
+    u_max: float,
+    dt: float,
+) -> float:
+    """:func:`smarc_step` in the simulator (the step of control/base.py): the ATO adds its
+    resistance model as a feed-forward; the clamp is the ATO's (``u_min``, ``u_max``)."""
+    return smarc_step(params, state, ref_x, ref_v, ref_a, x, v, dt) + resist_mps2

@@ -16,6 +16,7 @@ an integrator (``k = 1``) behind the brake's delay and lag.
 from __future__ import annotations
 
 import math
+from typing import Any
 
 
 def simc_pid_integrating(
@@ -137,3 +138,36 @@ def qsmc_defaults(
         "tau_d": 2.0 / p,
         "d_max": 0.3,
     }
+
+
+# --- tuning defaults of the built-in controllers (control/registry.py) -------------------
+# ``theta_s``: the ATO's brake delay plus half a control period (sim/run.tuning_model);
+# ``lag_s``: the ATO's brake lag. The free factors are the winners of the grid search in
+# railpilot/reproduce/tune_smarc_ep.py (same method and objective for both).
+
+
+def pid_tuning_default(theta_s: float, lag_s: float, control_period_s: float) -> dict[str, Any]:
+    """TrackingPID: SIMC with ``tau_c = theta``, back-calculation, position gain 0.75 x."""
+    tau_c = 1.0 * theta_s
+    return dict(
+        simc_pid_integrating(1.0, theta_s, lag_s, tau_c_s=tau_c),
+        anti_windup="backcalc",
+        position_gain=tracking_position_gain(theta_s, lag_s, tau_c, factor=0.75),
+    )
+
+
+def smarc_tuning_default(theta_s: float, lag_s: float, control_period_s: float) -> dict[str, Any]:
+    """SMARC from SIMC with ``tau_c = (theta + lag) / 2`` and the searched adaptation."""
+    return dict(
+        smarc_from_simc(1.0, theta_s, lag_s, tau_c_s=0.5 * (theta_s + lag_s)),
+        alpha=1.0,
+        eta=0.1,
+        phi=0.05,
+        gamma=(0.05, 0.05),
+        theta_bounds=((0.7, 1.5), (-0.3, 0.3)),
+    )
+
+
+def qsmc_tuning_default(theta_s: float, lag_s: float, control_period_s: float) -> dict[str, Any]:
+    """QSMC by :func:`qsmc_defaults`."""
+    return dict(qsmc_defaults(theta_s, lag_s, control_period_s))

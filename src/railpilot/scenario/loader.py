@@ -459,7 +459,13 @@ def _ato(t: _Table) -> ATOModel:
 
 
 def _controller(t: _Table) -> ControllerSpec:
-    name = t.string("name", "smarc", CONTROLLERS)
+    name = t.string("name", "smarc")
+    if name not in CONTROLLERS and ":" not in name:
+        raise ScenarioError(
+            t.key("name"),
+            name,
+            f"one of {', '.join(CONTROLLERS)} or module:Name (your own controller)",
+        )
     params: dict[str, dict[str, Any]] = {}
     for ctrl in CONTROLLERS:
         if t.has(ctrl):
@@ -529,9 +535,11 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> Scenario:
 
 def _check_consistency(scenario: Scenario) -> None:
     """Checks that need more than one table; raise before anything runs."""
-    from railpilot.sim.run import make_controller, pack_brake
+    from railpilot.brakes.base import PackContext
+    from railpilot.sim.run import make_controller
 
-    _build("brake", lambda: pack_brake(scenario, scenario.train.effective_mass_kg))
+    context = PackContext(scenario.sim.dt_s, scenario.train.effective_mass_kg, scenario.train)
+    _build("brake", lambda: scenario.brake.pack(context))
     # a controller given parameters it does not take is an error now, not mid-run
     for name in scenario.controller.params:
         try:

@@ -9,6 +9,7 @@ import numpy as np
 
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
+from railpilot.control.registry import CONTROLLERS as CONTROLLER_REGISTRY
 from railpilot.errors import ConfigError
 from railpilot.sim.disturbance import Disturbance
 from railpilot.sim.realism import Realism
@@ -17,7 +18,8 @@ from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line
 from railpilot.vehicle.train import Train
 
-CONTROLLERS = ("pid", "smarc", "qsmc")
+#: the built-in controllers' names, from their registry (control/registry.py)
+CONTROLLERS = tuple(CONTROLLER_REGISTRY)
 
 
 @dataclass(frozen=True)
@@ -69,8 +71,12 @@ class ControllerSpec:
     params: dict[str, dict[str, Any]] = field(default_factory=dict)
 
     def __post_init__(self) -> None:
-        if self.name not in CONTROLLERS:
-            raise ConfigError("controller.name", self.name, f"one of {', '.join(CONTROLLERS)}")
+        if self.name not in CONTROLLERS and ":" not in self.name:
+            raise ConfigError(
+                "controller.name",
+                self.name,
+                f"one of {', '.join(CONTROLLERS)} or module:Name (your own controller)",
+            )
 
 
 @dataclass(frozen=True)
@@ -149,11 +155,9 @@ class Scenario:
     @property
     def changeover_kmh(self) -> float:
         """Electric/air changeover speed [km/h]; 0 for a brake without one."""
-        return self.brake.changeover_kmh if isinstance(self.brake, EPBrake) else 0.0
+        return float(self.brake.changeover_kmh)
 
     @property
     def brake_lead_s(self) -> tuple[float, float]:
         """The plant brake's ``(delay, lag)`` [s] (the air path for the EP brake)."""
-        if isinstance(self.brake, EPBrake):
-            return self.brake.delay_s, self.brake.air_lag_s
-        return self.brake.delay_s, self.brake.lag_s
+        return self.brake.lead_s

@@ -17,22 +17,27 @@ replayed (:func:`replay_scenario`) and plotted.
 
 from __future__ import annotations
 
+import itertools
+import os
 import sys
 from collections.abc import Callable, Iterator
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
 from typing import Any, TypeVar, cast
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from railpilot.brakes.ep_blend import EPBrake
-from railpilot.control.base import Controller
+from railpilot.brakes.registry import brake_entry_of
+from railpilot.control.user import Binding, bind
 from railpilot.errors import ConfigError
 from railpilot.scenario.model import Scenario
 from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.sim import engine
-from railpilot.sim.run import KernelInputs, ato_brake_model, make_controller, metrics_dict
-from railpilot.sim.run import prepare as prepare_inputs
+from railpilot.sim.inputs import ato_brake_model, reference_inputs, run_inputs
+from railpilot.sim.layout import ReferenceIn, RunInputs, batch_row, stack_runs
+from railpilot.sim.run import metrics_dict, resolve_controller
 from railpilot.units import kmh_to_mps, tonne_to_kg
 
 T = TypeVar("T")
@@ -149,113 +154,82 @@ def _variant(nominal: Scenario, values: dict[str, float], seed: int) -> Scenario
     return s
 
 
-@njit(parallel=True, cache=True)
+@njit(nogil=True, cache=True)
 def run_batch_kernel(
-    n_steps: int,
-    dt: float,
-    control_every: int,
-    train: np.ndarray,
-    act_kind: int,
-    brake_p: np.ndarray,
-    line_edges: np.ndarray,
-    line_values: np.ndarray,
-    dist_const: np.ndarray,
-    reg_start: np.ndarray,
-    reg_end: np.ndarray,
-    reg_force: np.ndarray,
-    random_n: np.ndarray,
-    ref_x: np.ndarray,
-    ref_v: np.ndarray,
-    ref_a: np.ndarray,
-    ref_a_ff: np.ndarray,
-    dist_ref: np.ndarray,
-    ato: np.ndarray,
-    kind: int,
-    ctrl_p: np.ndarray,
-    ctrl_s0: np.ndarray,
-    real: np.ndarray,
-    speed_noise: np.ndarray,
-    balises: np.ndarray,
+    batch: RunInputs,
+    ctrl_step: Any,
+    brake_step: Any,
     metrics: np.ndarray,
+    start: int,
+    stop: int,
 ) -> None:
-    """:func:`engine.run_kernel` for every row of the per-run 2-D arrays, in parallel.
+    """:func:`engine.run_kernel` for runs ``start..stop`` of ``batch`` (sim/layout.py).
 
-    Per run (2-D, one row a run): ``train, brake_p, dist_const, random_n, ato, real,
-    speed_noise``; shared by all runs: the line, regions, reference, controller, balises.
+    Run ``i`` gets exactly :func:`~railpilot.sim.layout.batch_row` ``(batch, i)``: the
+    description a single run of its scenario gets. It releases the GIL, so
+    :func:`run_batch` runs slices of a batch on several threads at once.
     """
     empty = np.zeros((0, engine.N_CHANNELS))
-    for i in prange(train.shape[0]):
-        engine.run_kernel(
-            n_steps,
-            dt,
-            control_every,
-            train[i],
-            act_kind,
-            brake_p[i],
-            line_edges,
-            line_values,
-            dist_const[i],
-            reg_start,
-            reg_end,
-            reg_force,
-            random_n[i],
-            ref_x,
-            ref_v,
-            ref_a,
-            ref_a_ff,
-            dist_ref,
-            ato[i],
-            kind,
-            ctrl_p,
-            ctrl_s0,
-            real[i],
-            speed_noise[i],
-            balises,
-            empty,
-            1,
-            metrics[i],
-        )
+    for i in range(start, stop):
+        engine.run_kernel(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
 
 
-@dataclass
-class _Chunk:
-    """The per-run inputs of a chunk of runs, one row a run."""
-
-    train: np.ndarray
-    brake_p: np.ndarray
-    ato: np.ndarray
-    dist_const: np.ndarray
-    random_n: np.ndarray
-    speed_noise: np.ndarray
-    real: np.ndarray
+#: :func:`run_batch_kernel` never written to Numba's on-disk cache (a user's own step)
+run_batch_kernel_uncached = njit(nogil=True, cache=False)(run_batch_kernel.py_func)
 
 
-def _pack_chunk(
+def run_batch(
+    batch: RunInputs, binding: Binding, brake_step: Any, threads: int | None = None
+) -> np.ndarray:
+    """Metrics of every run of ``batch``: in parallel threads for a compiled controller,
+    one after another (each from a reset) for a Python one."""
+    runs = int(batch.train.p.shape[0])
+    metrics = np.zeros((runs, engine.N_METRICS))
+    if not binding.parallel_safe:
+        empty = np.zeros((0, engine.N_CHANNELS))
+        for i in range(runs):
+            with binding:
+                engine.run_kernel(
+                    batch_row(batch, i), binding.step, brake_step, empty, 1, metrics[i]
+                )
+        return metrics
+    n = max(1, min(threads or os.cpu_count() or 1, runs))
+    bounds = np.linspace(0, runs, n + 1).astype(int)
+    kernel = run_batch_kernel if binding.cacheable else run_batch_kernel_uncached
+    if n == 1:
+        kernel(batch, binding.step, brake_step, metrics, 0, runs)
+        return metrics
+    # compile (or load) once before the threads race to do it
+    kernel(batch, binding.step, brake_step, metrics, 0, 0)
+    with ThreadPoolExecutor(max_workers=n) as pool:
+        jobs = [
+            pool.submit(kernel, batch, binding.step, brake_step, metrics, int(a), int(b))
+            for a, b in itertools.pairwise(bounds)
+        ]
+        for job in jobs:
+            job.result()
+    return metrics
+
+
+def _chunk_inputs(
     nominal: Scenario,
-    controller: Controller,
-    base: KernelInputs,
+    binding: Binding,
+    reference: ReferenceIn,
     values: dict[str, np.ndarray],
     seeds: np.ndarray,
     start: int,
     stop: int,
-) -> _Chunk:
-    # one controller for every run: tuned once on the nominal plant, reset by prepare
-    rows = [
-        prepare_inputs(
-            _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i])),
-            controller,
-            reference=base,
-        )
-        for i in range(start, stop)
-    ]
-    return _Chunk(
-        train=np.stack([r.train for r in rows]),
-        brake_p=np.stack([r.brake_p for r in rows]),
-        ato=np.stack([r.ato for r in rows]),
-        dist_const=np.array([r.dist_const for r in rows]),
-        random_n=np.stack([r.random_n for r in rows]),
-        speed_noise=np.stack([r.speed_noise for r in rows]),
-        real=np.stack([r.real for r in rows]),
+) -> RunInputs:
+    """The batch of runs ``start..stop``: each run's own description, stacked."""
+    return stack_runs(
+        [
+            run_inputs(
+                _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i])),
+                binding,
+                reference=reference,
+            )
+            for i in range(start, stop)
+        ]
     )
 
 
@@ -265,42 +239,15 @@ def run_chunk(
     """Metrics ``(stop - start, N_METRICS)`` of runs ``start..stop``; runs anywhere.
 
     Pure function of its arguments (this is what a Dask worker executes).
+    ``controller_name`` is a built-in's name (tuned once on the nominal plant) or a
+    user's ``module:Name``.
     """
     nominal = freeze_ato(scenario)
-    controller = make_controller(nominal, controller_name)
-    base = prepare_inputs(nominal, controller)
+    binding = bind(resolve_controller(nominal, controller_name))
+    reference = reference_inputs(nominal)
     values, seeds = spec.samples()
-    chunk = _pack_chunk(nominal, controller, base, values, seeds, start, stop)
-    metrics = np.zeros((stop - start, engine.N_METRICS))
-    run_batch_kernel(
-        base.n_steps,
-        base.dt,
-        base.control_every,
-        chunk.train,
-        base.act_kind,
-        chunk.brake_p,
-        base.line_edges,
-        base.line_values,
-        chunk.dist_const,
-        base.reg_start,
-        base.reg_end,
-        base.reg_force,
-        chunk.random_n,
-        base.ref_x,
-        base.ref_v,
-        base.ref_a,
-        base.ref_a_ff,
-        base.dist_ref,
-        chunk.ato,
-        base.kind,
-        base.ctrl_p,
-        base.ctrl_s0,
-        chunk.real,
-        chunk.speed_noise,
-        base.balises,
-        metrics,
-    )
-    return metrics
+    batch = _chunk_inputs(nominal, binding, reference, values, seeds, start, stop)
+    return run_batch(batch, binding, brake_entry_of(nominal.brake).step)
 
 
 @dataclass

@@ -1,7 +1,9 @@
 """The fixed-step simulator: train + line + brake + controller + reference.
 
 The simulator owns time. Everything that runs per step is one Numba kernel,
-:func:`run_kernel`, working on flat float64 arrays, so the same compiled code runs
+:func:`run_kernel`, reading one typed description of the run (sim/layout.py) and
+calling the controller's and the brake's compiled steps it is handed (their
+registries, control/registry.py and brakes/registry.py), so the same compiled code runs
 one scenario (with a recorder) or a batch of many (metrics only, in parallel; see
 railpilot.sim.batch). The public entry point is railpilot.sim.run.simulate.
 
@@ -9,15 +11,13 @@ Per step ``k`` (``t = k dt``):
 
 1. every ``control_every`` steps the controller sees the *measured* position and
    speed (odometry with its errors, speed noise and quantisation; exact if the
-   realism effects are off) and the reference, and returns a commanded acceleration
-   ``u`` [m/s^2], held until its next update (the ATO cycle);
-2. the ATO turns ``u`` into a brake command: with its own resistance model added as a
-   feed-forward, quantised to notches if the brake has them, and
-   * ``ACT_EP`` (paper 000): a force demand through the load-weighed mass into the
-     EP blended brake (brakes/ep_blend.py);
-   * ``ACT_LAG_DELAY`` (paper 002): a command ``uc = F^-1(u)`` through the static map
-     ``F`` (linear, ``F(uc) = -a_max uc``), a first-order lag ``tau`` and a transport
-     delay ``sigma`` (brakes/lag_delay.py, exact);
+   realism effects are off), the reference and the ATO's resistance model, and returns
+   a commanded acceleration ``u`` [m/s^2], held until its next update (the ATO cycle);
+   the ATO clamps it and quantises it to notches if the brake has them;
+2. the brake's step turns ``u`` into electric and air brake forces, e.g. the EP blended
+   brake (paper 000: a force demand through the load-weighed mass, brakes/ep_blend.py)
+   or paper 002's brake (``uc = F^-1(u)`` through the static map ``F(uc) = -a_max uc``,
+   a first-order lag ``tau`` and a transport delay ``sigma``, brakes/lag_delay_brake.py);
 3. adhesion limits the brake force at the rail (a slide delivers a fraction of it and
    the wheels turn slower than the train, fooling odometry);
 4. the train moves: ``m (1 + gamma) a = D - B - R_davis - R_line``; the acceleration is
@@ -27,38 +27,41 @@ Per step ``k`` (``t = k dt``):
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
-from railpilot.brakes.ep_blend import N_STATE as EP_N_STATE
-from railpilot.brakes.ep_blend import P_BUF_LEN as EP_BUF_LEN
-from railpilot.brakes.ep_blend import ep_brake_step
-from railpilot.brakes.lag_delay import E_LEN, lag_delay_exact_step
-from railpilot.control.pid import P_HI as PID_HI
-from railpilot.control.pid import P_LO as PID_LO
-from railpilot.control.pid import pid_step, tracking_setpoint
-from railpilot.control.qsmc import qsmc_step as _qsmc
-from railpilot.control.smarc import smarc_step
+from railpilot.sim.layout import (
+    A_A0,
+    A_A1,
+    A_A2,
+    A_MASS,
+    A_MEFF_LW,
+    A_STOP_M,
+    A_UMAX,
+    A_UMIN,
+    A_V_CO,
+    B_N_BUFFER,
+    B_N_STATE,
+    D_CONST_N,
+    R_ADHESION,
+    R_NOTCHES,
+    R_SLIDE_RATIO,
+    R_SLIDE_SLIP,
+    R_SPEED_RES,
+    R_WHEEL_SCALE,
+    T_A0,
+    T_A1,
+    T_A2,
+    T_BRAKE_GAIN,
+    T_MASS,
+    T_MEFF,
+    T_V0,
+    T_X0,
+    RunInputs,
+)
 
-KIND_PID = 0
-KIND_SMARC = 1
-KIND_QSMC = 2
-
-ACT_EP = 0
-ACT_LAG_DELAY = 1
-#: index of ``a_max`` [m/s^2] in a lag-delay brake's params (after LagDelay's five)
-LD_A_MAX = 5
-
-# train params (T_BRAKE_GAIN: the brake's true effort relative to nominal, e.g. shoe
-# friction above or below what the brake manager assumes; the air path for EP brakes)
-T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0, T_BRAKE_GAIN = range(8)
-N_TRAIN = 8
-# ATO params: the controllers' side's view of the train
-A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO = range(9)
-N_ATO = 9
-# realism params (all 0 = the idealised papers' world)
-(R_SPEED_RES, R_WHEEL_SCALE, R_SLIDE_SLIP, R_ADHESION, R_SLIDE_RATIO, R_NOTCHES) = range(6)
-N_REAL = 6
 # metrics
 (
     M_STOP_ERR,
@@ -111,67 +114,45 @@ def _disturbance(
 
 
 @njit(cache=True)
-def brake_buffer_length(act_kind: int, brake_p: np.ndarray) -> int:
-    """Slots of command history the brake needs (its delay line)."""
-    if act_kind == ACT_EP:
-        return int(brake_p[EP_BUF_LEN])
-    return int(brake_p[E_LEN])
-
-
-@njit(cache=True)
-def brake_state_length(act_kind: int) -> int:
-    """Floats of state the brake keeps (the lag-delay kernel: output and step index)."""
-    return EP_N_STATE if act_kind == ACT_EP else 2
-
-
-@njit(cache=True)
 def run_kernel(
-    n_steps: int,
-    dt: float,
-    control_every: int,
-    train: np.ndarray,
-    act_kind: int,
-    brake_p: np.ndarray,
-    line_edges: np.ndarray,
-    line_values: np.ndarray,
-    dist_const: float,
-    reg_start: np.ndarray,
-    reg_end: np.ndarray,
-    reg_force: np.ndarray,
-    random_n: np.ndarray,
-    ref_x: np.ndarray,
-    ref_v: np.ndarray,
-    ref_a: np.ndarray,
-    ref_a_ff: np.ndarray,
-    dist_ref: np.ndarray,
-    ato: np.ndarray,
-    kind: int,
-    ctrl_p: np.ndarray,
-    ctrl_s0: np.ndarray,
-    real: np.ndarray,
-    speed_noise: np.ndarray,
-    balises: np.ndarray,
+    inp: RunInputs,
+    ctrl_step: Any,
+    brake_step: Any,
     record: np.ndarray,
     record_every: int,
     metrics: np.ndarray,
 ) -> None:
-    """Run one scenario for ``n_steps``; fill ``metrics`` and, if it has rows, ``record``.
+    """Run one scenario; fill ``metrics`` and, if it has rows, ``record``.
 
-    ``ref_*`` have ``n_steps + 1`` samples; ``ref_a_ff`` is the reference acceleration
-    the feed-forward uses (shifted ahead by the ATO's model of the brake's lead).
-    ``random_n`` (force [N] per step) and ``speed_noise`` ([m/s] per controller update)
-    may be empty. ``dist_ref`` is empty for a time-based reference, or ``(3, m)``: the
-    curve's position [m], speed [m/s] and fed-forward acceleration [m/s^2] by position,
-    which the ATO then looks up at the measured position (distance to go). The
-    controller's state is copied from ``ctrl_s0``, so the inputs are never changed and a
-    batch can share them.
+    ``inp`` is the run's description (sim/layout.py). ``ctrl_step`` is the controller's
+    compiled step and ``brake_step`` the brake's, with the signatures of control/base.py
+    and brakes/base.py (the entries of their registries, or a user's compiled
+    controller): the loop calls what it is given, nothing else. Inputs are never changed
+    (the controller's parameters and state are copied), so a batch can share them.
     """
-    ctrl_s = ctrl_s0.copy()
-    # a private copy: the PID's limits are moved every update (below), and a batch
-    # shares ``ctrl_p`` between runs running in parallel
-    ctrl_p = ctrl_p.copy()
-    brake_s = np.zeros(brake_state_length(act_kind))
-    brake_buf = np.zeros(brake_buffer_length(act_kind, brake_p))
+    n_steps = inp.sim.n_steps
+    dt = inp.sim.dt
+    control_every = inp.sim.control_every
+    train = inp.train.p
+    brake_p = inp.brake.p
+    line_edges = inp.line.edges
+    line_values = inp.line.values
+    dist = inp.disturbance
+    ref_x = inp.reference.x
+    ref_v = inp.reference.v
+    ref_a = inp.reference.a
+    ref_a_ff = inp.reference.a_ff
+    dist_ref = inp.reference.by_distance
+    ato = inp.ato.p
+    real = inp.realism.p
+    speed_noise = inp.realism.speed_noise
+    balises = inp.realism.balises
+    ctrl_s = inp.controller.s0.copy()
+    # a private copy: a step may change its parameters (the PID's limits follow the
+    # ATO's clamp), and a batch shares them between runs running in parallel
+    ctrl_p = inp.controller.p.copy()
+    brake_s = np.zeros(int(inp.brake.sizes[B_N_STATE]))
+    brake_buf = np.zeros(int(inp.brake.sizes[B_N_BUFFER]))
     m_eff = train[T_MEFF]
     mass = train[T_MASS]
     x = train[T_X0]
@@ -250,39 +231,29 @@ def run_kernel(
                 * ato[A_MASS]
                 / ato[A_MEFF_LW]
             )
-            if kind == KIND_PID:
-                # the PID's output is added to the feed-forward and the sum is clamped
-                # by the ATO: tell the PID where that clamp is, so its anti-windup sees
-                # the real saturation (a braking-only ATO cannot pull, and an integrator
-                # that wants traction would otherwise wind up and release the brake late)
-                ff = raff + r_model
-                ctrl_p[PID_LO] = ato[A_UMIN] - ff
-                ctrl_p[PID_HI] = ato[A_UMAX] - ff
-                v_set = tracking_setpoint(ctrl_p, rx, rv, x_odo)
-                u = ff + pid_step(ctrl_p, ctrl_s, v_set, v_meas, ctrl_dt)
-            elif kind == KIND_SMARC:
-                u = smarc_step(ctrl_p, ctrl_s, rx, rv, raff, x_odo, v_meas, ctrl_dt) + r_model
-            else:
-                # QSMC's internal brake model is fed the reference acceleration the ATO
-                # wants delivered one lead from now, so its predicted reference error
-                # sees a braking point coming (with ref_a[k] it starts one lead late)
-                u = _qsmc(ctrl_p, ctrl_s, rx, rv, raff, x_odo, v_meas, ctrl_dt) + r_model
+            u = ctrl_step(
+                ctrl_p,
+                ctrl_s,
+                rx,
+                rv,
+                raff,
+                x_odo,
+                v_meas,
+                r_model,
+                ato[A_UMIN],
+                ato[A_UMAX],
+                ctrl_dt,
+            )
             u = min(max(u, ato[A_UMIN]), ato[A_UMAX])
             if notches > 0.0:
                 # brake commands in notches: the nearest one to the wanted command
                 step = -ato[A_UMIN] / notches
                 u = np.round(u / step) * step
         # --- brake
-        if act_kind == ACT_EP:
-            demand = -u * ato[A_MEFF_LW] if u < 0.0 else 0.0
-            e_n, air_n = ep_brake_step(brake_p, brake_s, brake_buf, demand, v, t, dt)
-            air_n *= train[T_BRAKE_GAIN]
-        else:
-            uc = min(max(-u / brake_p[LD_A_MAX], 0.0), 1.0)  # F^-1: command in [0, 1]
-            demand = uc * brake_p[LD_A_MAX] * m_eff
-            ac = lag_delay_exact_step(brake_p, brake_s, brake_buf, -brake_p[LD_A_MAX] * uc)
-            e_n = 0.0
-            air_n = -ac * m_eff * train[T_BRAKE_GAIN]
+        e_n, air_n, demand = brake_step(
+            brake_p, brake_s, brake_buf, u, v, t, dt, ato[A_MEFF_LW], m_eff
+        )
+        air_n *= train[T_BRAKE_GAIN]
         if moving:
             brake_n = e_n + air_n
             sliding = False
@@ -306,8 +277,16 @@ def run_kernel(
                 * G
                 / 1000.0
             )
-            dist = _disturbance(x, k, dist_const, reg_start, reg_end, reg_force, random_n)
-            a = (dist - brake_n - resist) / m_eff
+            outside = _disturbance(
+                x,
+                k,
+                dist.p[D_CONST_N],
+                dist.region_start,
+                dist.region_end,
+                dist.region_force,
+                dist.random_n,
+            )
+            a = (outside - brake_n - resist) / m_eff
             v_next = v + a * dt
             x_before = x
             if v_next <= 0.0 and a < 0.0:
@@ -373,3 +352,14 @@ def run_kernel(
     metrics[M_STOPPED] = 0.0 if moving else 1.0
     metrics[M_ODO_ERR] = x_odo - x
     metrics[M_SLIDE_T] = slide_t
+
+
+#: The same loop, never written to Numba's on-disk cache: for a user's own compiled step,
+#: whose module the cache could not find again in another process (it is compiled once
+#: per process instead).
+run_kernel_uncached = njit(cache=False)(run_kernel.py_func)
+
+
+def kernel_for(cacheable: bool) -> Any:
+    """:func:`run_kernel`, or its uncached twin for a user's own step."""
+    return run_kernel if cacheable else run_kernel_uncached

@@ -23,7 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from railpilot.errors import ConfigError
-from railpilot.sim import engine
+from railpilot.sim import layout
 
 
 @dataclass(frozen=True)
@@ -86,13 +86,13 @@ class Realism:
 
     def pack(self) -> np.ndarray:
         """The kernel's realism params."""
-        real = np.zeros(engine.N_REAL)
-        real[engine.R_SPEED_RES] = self.speed_resolution_mps
-        real[engine.R_WHEEL_SCALE] = self.wheel_scale_error
-        real[engine.R_SLIDE_SLIP] = self.slide_slip
-        real[engine.R_ADHESION] = self.adhesion
-        real[engine.R_SLIDE_RATIO] = self.slide_ratio
-        real[engine.R_NOTCHES] = self.notches
+        real = np.zeros(layout.N_REAL)
+        real[layout.R_SPEED_RES] = self.speed_resolution_mps
+        real[layout.R_WHEEL_SCALE] = self.wheel_scale_error
+        real[layout.R_SLIDE_SLIP] = self.slide_slip
+        real[layout.R_ADHESION] = self.adhesion
+        real[layout.R_SLIDE_RATIO] = self.slide_ratio
+        real[layout.R_NOTCHES] = self.notches
         return real
 
     def balises(self) -> np.ndarray:

@@ -1,96 +1,49 @@
 """Public entry point: run a scenario, get a :class:`~railpilot.sim.result.SimResult`.
 
-:func:`prepare` packs a scenario and a controller into the kernel's flat arrays
-(:class:`KernelInputs`), :func:`run_inputs` runs them once, :func:`simulate` does both
-and names the results. railpilot.sim.batch reuses ``prepare`` for Monte Carlo runs.
+:func:`simulate` binds the controller (control/user.py: a built-in runs its registered
+kernel, a user's object what it brings), builds the run's description
+(railpilot.sim.inputs) and runs the compiled loop (railpilot.sim.engine) once with a
+recorder; railpilot.sim.batch runs the same description for many runs.
 """
 
 from __future__ import annotations
 
 import inspect
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
-from railpilot.brakes.ep_blend import EPBrake
+from railpilot.brakes.registry import brake_entry_of
 from railpilot.control.base import Controller
-from railpilot.control.pid import TrackingPID
-from railpilot.control.qsmc import QSMC
-from railpilot.control.smarc import SMARC
-from railpilot.control.tuning import (
-    qsmc_defaults,
-    simc_pid_integrating,
-    smarc_from_simc,
-    tracking_position_gain,
-)
+from railpilot.control.registry import controller_entry
+from railpilot.control.user import Binding, bind, is_user_spec, load_controller
 from railpilot.errors import ConfigError
-from railpilot.scenario.model import CONTROLLERS, Scenario
+from railpilot.scenario.model import Scenario
 from railpilot.sim import engine
-from railpilot.sim.reference import BrakingCurve
+from railpilot.sim.inputs import distance_table, run_inputs, tuning_model
+from railpilot.sim.layout import RunInputs
 from railpilot.sim.result import CHANNELS, SimResult
-from railpilot.units import kmh_to_mps
 
-CONTROLLER_CLASSES: dict[str, type[Controller]] = {
-    "pid": TrackingPID,
-    "smarc": SMARC,
-    "qsmc": QSMC,
-}
-KINDS = {"pid": engine.KIND_PID, "smarc": engine.KIND_SMARC, "qsmc": engine.KIND_QSMC}
+__all__ = [
+    "default_controller_params",
+    "distance_table",
+    "make_controller",
+    "resolve_controller",
+    "run_once",
+    "simulate",
+    "tuning_model",
+]
 
 
 def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:
-    """Controller parameters by the documented tuning rule for this scenario's brake.
+    """Controller parameters by the registered tuning rule for this scenario's brake.
 
     The ATO's model of the brake (``ato.brake_delay_s`` and ``ato.brake_lag_s``, else
-    the true delay and lag) goes into the tuning rules of control/tuning.py.
+    the true delay and lag) and half a control period go into the rule
+    (:func:`~railpilot.sim.inputs.tuning_model`).
     """
-    delay, lag = tuning_model(scenario)
-    # tau_c and the remaining free parameters: the winners of the grid search in
-    # railpilot/reproduce/tune_smarc_ep.py (same method and objective for both)
-    if name == "pid":
-        tau_c = 1.0 * delay
-        return dict(
-            simc_pid_integrating(1.0, delay, lag, tau_c_s=tau_c),
-            anti_windup="backcalc",
-            position_gain=tracking_position_gain(delay, lag, tau_c, factor=0.75),
-        )
-    if name == "smarc":
-        return dict(
-            smarc_from_simc(1.0, delay, lag, tau_c_s=0.5 * (delay + lag)),
-            alpha=1.0,
-            eta=0.1,
-            phi=0.05,
-            gamma=(0.05, 0.05),
-            theta_bounds=((0.7, 1.5), (-0.3, 0.3)),
-        )
-    if name == "qsmc":
-        return qsmc_defaults(delay, lag, scenario.sim.control_period_s)
-    raise ConfigError("controller.name", name, f"one of {', '.join(CONTROLLERS)}")
-
-
-def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
-    """The ATO's model of the brake's ``(delay, lag)`` [s].
-
-    ``ato.brake_delay_s`` and ``ato.brake_lag_s``; each one not given is the plant's.
-    """
-    delay, lag = scenario.brake_lead_s
-    ato = scenario.ato
-    return (
-        delay if ato.brake_delay_s is None else ato.brake_delay_s,
-        lag if ato.brake_lag_s is None else ato.brake_lag_s,
-    )
-
-
-def tuning_model(scenario: Scenario) -> tuple[float, float]:
-    """The ``(theta, T)`` the tuning rules get: the ATO's brake model plus sampling.
-
-    A controller that updates every ``control_period_s`` adds half a period of
-    effective delay (Skogestad 2003, section 3.2: the zero-order hold), so the rules see
-    ``theta = brake delay + period / 2``; that also keeps ``theta > 0``, which SIMC needs.
-    """
-    delay, lag = ato_brake_model(scenario)
-    return delay + scenario.sim.control_period_s / 2.0, lag
+    theta, lag = tuning_model(scenario)
+    return controller_entry(name).tuning(theta, lag, scenario.sim.control_period_s)
 
 
 def _constructor_parameters(cls: type) -> dict[str, inspect.Parameter]:
@@ -110,13 +63,12 @@ def _constructor_parameters(cls: type) -> dict[str, inspect.Parameter]:
 
 
 def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
-    """Build the scenario's controller (or ``name``) with tuned defaults + overrides."""
+    """Build the scenario's built-in controller (or ``name``): tuned defaults + overrides."""
     name = name or scenario.controller.name
-    if name not in CONTROLLER_CLASSES:
-        raise ConfigError("controller.name", name, f"one of {', '.join(CONTROLLERS)}")
+    entry = controller_entry(name)
     params = default_controller_params(scenario, name)
     overrides = scenario.controller.params.get(name, {})
-    cls = CONTROLLER_CLASSES[name]
+    cls = entry.cls
     accepted = _constructor_parameters(cls)
     allowed = list(accepted)
     for key, value in overrides.items():
@@ -183,212 +135,31 @@ def _describe_shape(reference: Any) -> str:
     return "a valid value"
 
 
-@dataclass
-class KernelInputs:
-    """Everything :func:`engine.run_kernel` takes (see its docstring)."""
-
-    n_steps: int
-    dt: float
-    control_every: int
-    train: np.ndarray
-    act_kind: int
-    brake_p: np.ndarray
-    line_edges: np.ndarray
-    line_values: np.ndarray
-    dist_const: float
-    reg_start: np.ndarray
-    reg_end: np.ndarray
-    reg_force: np.ndarray
-    random_n: np.ndarray
-    ref_x: np.ndarray
-    ref_v: np.ndarray
-    ref_a: np.ndarray
-    ref_a_ff: np.ndarray
-    dist_ref: np.ndarray
-    ato: np.ndarray
-    kind: int
-    ctrl_p: np.ndarray
-    ctrl_s0: np.ndarray
-    real: np.ndarray
-    speed_noise: np.ndarray
-    balises: np.ndarray
+def resolve_controller(scenario: Scenario, controller: Any = None) -> Any:
+    """The controller object to run: the one given, a built-in by name (tuned for this
+    scenario), a user's ``module:Name``, or the scenario's own."""
+    if controller is None or isinstance(controller, str):
+        name = controller or scenario.controller.name
+        if is_user_spec(name):
+            return load_controller(name)
+        return make_controller(scenario, name)
+    return controller
 
 
-def feed_forward_acceleration(ref: BrakingCurve, t: np.ndarray, lead_s: float) -> np.ndarray:
-    """Reference acceleration [m/s^2] to command at ``t`` for a brake ``lead_s`` slow.
+def run_once(
+    inp: RunInputs, binding: Binding, brake_step: Any, record_every: int = 0
+) -> tuple[np.ndarray, np.ndarray]:
+    """Run one description with a bound controller and the brake's compiled step.
 
-    ``a_ref(t + lead)``, except over the last ``lead`` before the stop: there the
-    reference is at rest at ``t + lead`` only because the train will have stopped, not
-    because the brake is to be released, so the deceleration the curve stops with is
-    held (a train stops on its brakes).
+    Returns ``(metrics, record)``; the record is empty for ``record_every = 0``.
     """
-    _, _, a_ahead = ref.sample(t + lead_s)
-    end = ref.duration_s
-    _, _, (a_final,) = ref.sample(np.array([end - 1e-9]))
-    holding = (t < end) & (t + lead_s >= end)
-    return np.where(holding, np.minimum(a_ahead, a_final), a_ahead)
-
-
-def distance_table(ref: BrakingCurve, dt: float, lead_s: float) -> np.ndarray:
-    """The braking curve by position: ``[x, v(x), fed-forward a(x)]`` rows, x increasing.
-
-    For a distance-based reference the ATO looks these up at the measured position.
-    Sampled at the simulation step over the curve's moving part; the fed-forward
-    acceleration at a position is the one the time-based ATO would command when the
-    reference passes it (``feed_forward_acceleration``), and beyond the stop point the
-    last row holds (at rest, braking with the final deceleration).
-    """
-    t = np.arange(0.0, ref.duration_s + dt, dt)
-    x, v, _ = ref.sample(t)
-    a_ff = feed_forward_acceleration(ref, t, lead_s)
-    keep = np.concatenate(([True], np.diff(x) > 0))  # interp needs increasing positions
-    return np.vstack([x[keep], v[keep], a_ff[keep]])
-
-
-def pack_brake(scenario: Scenario, load_weighed_eff_mass_kg: float) -> tuple[int, np.ndarray]:
-    """``(actuator kind, params)`` of the scenario's brake for step ``sim.dt_s``."""
-    brake = scenario.brake
-    if isinstance(brake, EPBrake):
-        eb = scenario.train.electric_brake
-        return engine.ACT_EP, brake.pack(
-            scenario.sim.dt_s,
-            load_weighed_eff_mass_kg,
-            eb.max_force_n,
-            eb.max_power_w,
-            scenario.train.motor_cars,
-        )
-    return engine.ACT_LAG_DELAY, brake.pack(scenario.sim.dt_s)
-
-
-def prepare(
-    scenario: Scenario, controller: Controller, reference: KernelInputs | None = None
-) -> KernelInputs:
-    """Pack a scenario and a controller into the kernel's flat arrays.
-
-    ``reference``: inputs of a scenario with the same reference, sim settings and ATO
-    model, whose sampled reference arrays are reused (a Monte Carlo's runs).
-    """
-    sim = scenario.sim
-    train = scenario.train
-    dt = sim.dt_s
-    n = sim.n_steps
-    ref = scenario.reference
-    if reference is not None:
-        ref_x, ref_v, ref_a, ref_a_ff, dist_ref = (
-            reference.ref_x,
-            reference.ref_v,
-            reference.ref_a,
-            reference.ref_a_ff,
-            reference.dist_ref,
-        )
-    else:
-        t = np.arange(n + 1) * dt
-        ref_x, ref_v, ref_a = ref.sample(t)
-        delay, lag = ato_brake_model(scenario)
-        ref_a_ff = feed_forward_acceleration(ref, t, delay + lag)
-        dist_ref = (
-            distance_table(ref, dt, delay + lag)
-            if scenario.ato.reference == "distance"
-            else np.zeros((3, 0))
-        )
-    ato = scenario.ato
-    mass_lw = ato.mass_kg if ato.mass_kg is not None else train.mass_kg
-    davis = ato.davis if ato.davis is not None else (train.davis_a0, train.davis_a1, train.davis_a2)
-    ato_arr = np.zeros(engine.N_ATO)
-    ato_arr[engine.A_MEFF_LW] = mass_lw * (1 + train.rotating_mass_factor)
-    ato_arr[engine.A_A0], ato_arr[engine.A_A1], ato_arr[engine.A_A2] = davis
-    ato_arr[engine.A_MASS] = mass_lw
-    ato_arr[engine.A_UMIN] = -train.max_service_decel_mps2
-    ato_arr[engine.A_UMAX] = 0.0
-    ato_arr[engine.A_STOP_M] = ref.stop_m
-    ato_arr[engine.A_V_CO] = kmh_to_mps(scenario.changeover_kmh)
-    train_arr = np.array(
-        [
-            train.effective_mass_kg,
-            train.mass_kg,
-            train.davis_a0,
-            train.davis_a1,
-            train.davis_a2,
-            ref.start_m,
-            ref.v0_mps if scenario.initial_speed_mps is None else scenario.initial_speed_mps,
-            scenario.brake_gain,
-        ]
-    )
-    act_kind, brake_p = pack_brake(scenario, ato_arr[engine.A_MEFF_LW])
-    edges, values = scenario.line.resistance_profile()
-    reg_start, reg_end, reg_force = scenario.disturbance.region_arrays()
-    kind = KINDS.get(getattr(controller, "name", ""), -1)
-    if kind < 0 or not isinstance(controller, tuple(CONTROLLER_CLASSES.values())):
-        raise ConfigError(
-            "controller", type(controller).__name__, "a TrackingPID, SMARC or QSMC controller"
-        )
-    controller.reset()
-    realism = scenario.realism
-    n_updates = (n + sim.control_every - 1) // sim.control_every
-    return KernelInputs(
-        n_steps=n,
-        dt=dt,
-        control_every=sim.control_every,
-        train=train_arr,
-        act_kind=act_kind,
-        brake_p=brake_p,
-        line_edges=edges,
-        line_values=values,
-        dist_const=scenario.disturbance.constant_n,
-        reg_start=reg_start,
-        reg_end=reg_end,
-        reg_force=reg_force,
-        random_n=scenario.disturbance.random_series(n, dt, ref_a, train.effective_mass_kg),
-        ref_x=ref_x,
-        ref_v=ref_v,
-        ref_a=ref_a,
-        ref_a_ff=ref_a_ff,
-        dist_ref=dist_ref,
-        ato=ato_arr,
-        kind=kind,
-        ctrl_p=controller.params.copy(),
-        ctrl_s0=controller.state.copy(),
-        real=realism.pack(),
-        speed_noise=realism.speed_noise(n_updates),  # seeded by realism
-        balises=realism.balises(),
-    )
-
-
-def run_inputs(inp: KernelInputs, record_every: int = 0) -> tuple[np.ndarray, np.ndarray]:
-    """Run packed inputs once; return ``(metrics, record)`` (record empty if 0)."""
-    n_rec = (inp.n_steps + record_every - 1) // record_every if record_every > 0 else 0
+    n = inp.sim.n_steps
+    n_rec = (n + record_every - 1) // record_every if record_every > 0 else 0
     record = np.zeros((n_rec, engine.N_CHANNELS))
     metrics = np.zeros(engine.N_METRICS)
-    engine.run_kernel(
-        inp.n_steps,
-        inp.dt,
-        inp.control_every,
-        inp.train,
-        inp.act_kind,
-        inp.brake_p,
-        inp.line_edges,
-        inp.line_values,
-        inp.dist_const,
-        inp.reg_start,
-        inp.reg_end,
-        inp.reg_force,
-        inp.random_n,
-        inp.ref_x,
-        inp.ref_v,
-        inp.ref_a,
-        inp.ref_a_ff,
-        inp.dist_ref,
-        inp.ato,
-        inp.kind,
-        inp.ctrl_p,
-        inp.ctrl_s0,
-        inp.real,
-        inp.speed_noise,
-        inp.balises,
-        record,
-        max(record_every, 1),
-        metrics,
-    )
+    kernel = engine.kernel_for(binding.cacheable)
+    with binding:
+        kernel(inp, binding.step, brake_step, record, max(record_every, 1), metrics)
     return metrics, record
 
 
@@ -414,17 +185,24 @@ def metrics_dict(metrics: np.ndarray) -> dict[str, float]:
     return {name: float(metrics[i]) for name, i in METRIC_INDEX.items()}
 
 
-def simulate(scenario: Scenario, controller: Controller | str | None = None) -> SimResult:
-    """Run ``scenario`` with its controller (or the one given) and record everything."""
-    ctrl = (
-        controller if isinstance(controller, Controller) else make_controller(scenario, controller)
-    )
-    inp = prepare(scenario, ctrl)
-    metrics, record = run_inputs(inp, record_every=scenario.sim.record_every)
+def simulate(scenario: Scenario, controller: Any = None) -> SimResult:
+    """Run ``scenario`` and record everything.
+
+    ``controller``: None (the scenario's), a built-in's name, ``module:Name`` (your own,
+    control/user.py), or a controller object: a built-in, one with a compiled ``step``,
+    or any object with ``reset()`` and ``update(reference, measurement, dt)``. What runs
+    is what is given: a subclass of a built-in that overrides ``update`` runs its
+    ``update``.
+    """
+    ctrl = resolve_controller(scenario, controller)
+    binding = bind(ctrl)
+    inp = run_inputs(scenario, binding)
+    brake_step = brake_entry_of(scenario.brake).step
+    metrics, record = run_once(inp, binding, brake_step, scenario.sim.record_every)
     series = {name: record[:, i].copy() for i, (name, _) in enumerate(CHANNELS)}
     meta = {
         "scenario": scenario.name,
-        "controller": ctrl.name,
+        "controller": binding.name,
         "stop_point_m": scenario.reference.stop_m,
         "dt_s": scenario.sim.dt_s,
         "stopped": bool(metrics[engine.M_STOPPED]),

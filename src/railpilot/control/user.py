@@ -1,0 +1,231 @@
+"""Your own controller in the simulator: what runs is what you passed.
+
+Two ways in (docs/architecture.md, "Your own controller"):
+
+* **A Python object** with ``reset()`` and ``update(reference, measurement, dt) ->
+  command``: ``reference = (x_ref [m], v_ref [m/s], a_ref [m/s^2])``, ``measurement =
+  (x [m], v [m/s])`` (measured, with the scenario's sensor effects), ``dt`` the control
+  period [s]; ``command`` is the acceleration wanted [m/s^2] (negative brakes). The ATO
+  adds its resistance model as a feed-forward and clamps the sum, as for every built-in
+  controller. The simulator calls ``update`` from its compiled loop at every control
+  update (Numba's object mode: the same plant code, about a microsecond more per call),
+  so any Python runs; a Monte Carlo runs such a controller one run after another
+  (``reset()`` before each), never in parallel.
+* **A compiled step**: an object with a Numba ``@njit`` function ``step`` of the signature
+  in control/base.py and float64 arrays ``params`` and ``state`` (subclass
+  :class:`CompiledController`). It runs in the fast path and in parallel Monte Carlo.
+
+A built-in controller's class runs its registered kernel; a subclass of it that overrides
+``update`` runs its ``update`` (the Python path), one that brings a ``step`` runs that.
+:func:`bind` decides, and never substitutes one law for another.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib
+import importlib.util
+import itertools
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, NamedTuple
+
+import numpy as np
+from numba import njit, objmode
+from numba.core.dispatcher import Dispatcher
+
+from railpilot.errors import ConfigError
+
+from .base import Controller
+from .registry import CONTROLLERS, builtin_entry_of, controller_entry
+
+
+class Reference(NamedTuple):
+    """What a Python controller is told to track at one control update."""
+
+    x_m: float
+    v_mps: float
+    a_mps2: float
+
+
+class Measurement(NamedTuple):
+    """What a Python controller measures at one control update."""
+
+    x_m: float
+    v_mps: float
+
+
+class CompiledController:
+    """Base for a user's compiled controller: ``step`` (an ``@njit`` function with the
+    signature of control/base.py), ``params`` and ``state`` (float64 arrays).
+
+    ``reset()`` restores the state given at construction; the simulator copies
+    ``params`` and ``state`` for every run, so one object serves a whole Monte Carlo.
+    """
+
+    name = "compiled"
+    step: Any = None
+
+    def __init__(self, params: Any, state: Any) -> None:
+        self.params = np.asarray(params, dtype=float).copy()
+        self.state = np.asarray(state, dtype=float).copy()
+        self._state0 = self.state.copy()
+        if not isinstance(type(self).step, Dispatcher):
+            raise ConfigError(
+                f"{type(self).__name__}.step",
+                type(self).step,
+                "a Numba @njit function (signature: control/base.py)",
+            )
+
+    def reset(self) -> None:
+        self.state[:] = self._state0
+
+
+# --- the Python path ----------------------------------------------------------------------
+
+#: Python controllers taking part in a run now, by handle (the compiled loop passes the
+#: handle in its params and finds the object here).
+_LIVE: dict[int, Any] = {}
+_HANDLES = itertools.count(1)
+
+
+def _python_update(
+    handle: int, rx: float, rv: float, ra: float, x: float, v: float, dt: float
+) -> float:
+    command = _LIVE[handle].update(Reference(rx, rv, ra), Measurement(x, v), dt)
+    return float(command)
+
+
+@njit(cache=True)
+def python_step(
+    params: np.ndarray,
+    state: np.ndarray,
+    ref_x: float,
+    ref_v: float,
+    ref_a: float,
+    x: float,
+    v: float,
+    resist_mps2: float,
+    u_min: float,
+    u_max: float,
+    dt: float,
+) -> float:
+    """The step (control/base.py) that calls a Python controller's ``update``."""
+    handle = int(params[0])
+    with objmode(u="float64"):
+        u = _python_update(handle, ref_x, ref_v, ref_a, x, v, dt)
+    return u + resist_mps2
+
+
+# --- binding ---------------------------------------------------------------------------
+
+
+@dataclass
+class Binding:
+    """What the simulator runs for one controller object."""
+
+    name: str
+    step: Any
+    params: np.ndarray
+    state: np.ndarray
+    #: the Python object the step calls (the Python path), None for compiled steps
+    python: Any = None
+    #: a registered step (or the Python path's): the compiled loop specialised for it
+    #: may go to Numba's on-disk cache; a user's own step is compiled in each process
+    cacheable: bool = True
+
+    @property
+    def parallel_safe(self) -> bool:
+        """False for the Python path: one object, so runs go one after another."""
+        return self.python is None
+
+    def __enter__(self) -> Binding:
+        if self.python is not None:
+            self.python.reset()
+            _LIVE[int(self.params[0])] = self.python
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.python is not None:
+            _LIVE.pop(int(self.params[0]), None)
+
+
+def bind(controller: Any) -> Binding:
+    """How ``controller`` runs in the simulator; a ConfigError if it cannot.
+
+    A built-in (an instance of a registered class, or a subclass changing neither
+    ``update`` nor ``step``) runs its registered kernel; an object with a compiled
+    ``step`` runs that; anything else with ``reset()`` and ``update()`` runs its
+    ``update`` on the Python path.
+    """
+    name = str(getattr(controller, "name", type(controller).__name__))
+    entry = builtin_entry_of(controller) if isinstance(controller, Controller) else None
+    if entry is not None:
+        controller.reset()
+        return Binding(entry.name, entry.step, controller.params.copy(), controller.state.copy())
+    step = getattr(type(controller), "step", None)
+    if isinstance(step, Dispatcher):
+        controller.reset()
+        params = np.asarray(controller.params, dtype=float)
+        state = np.asarray(controller.state, dtype=float)
+        return Binding(name, step, params.copy(), state.copy(), cacheable=False)
+    if callable(getattr(controller, "update", None)) and callable(
+        getattr(controller, "reset", None)
+    ):
+        handle = next(_HANDLES)
+        return Binding(name, python_step, np.array([float(handle)]), np.zeros(0), controller)
+    raise ConfigError(
+        "controller",
+        type(controller).__name__,
+        "a built-in controller, an object with reset() and update(reference, measurement, "
+        "dt), or one with a compiled step (control/user.py)",
+    )
+
+
+def is_user_spec(name: str) -> bool:
+    """``module:Name`` or ``path/to/file.py:Name`` (not a registered name)."""
+    return ":" in name and name not in CONTROLLERS
+
+
+def load_controller(spec: str, field: str = "controller") -> Any:
+    """Build the controller named by ``module:Name`` or ``path/file.py:Name``.
+
+    ``Name`` is a class or a function; it is called without arguments.
+    """
+    module_name, _, attr = spec.rpartition(":")
+    if not module_name or not attr:
+        controller_entry(spec, field)  # raises, naming the built-in choices
+    try:
+        if module_name.endswith(".py") or "/" in module_name:
+            path = Path(module_name)
+            if not path.is_file():
+                raise ConfigError(field, spec, f"module:Name with an existing file ({path})")
+            # a name that is the same in every process, so Numba's cache of the user's
+            # kernels finds their module again
+            digest = hashlib.sha1(str(path.resolve()).encode()).hexdigest()[:12]
+            mod_id = f"railpilot_user_{path.stem}_{digest}"
+            module_spec = importlib.util.spec_from_file_location(mod_id, path)
+            assert module_spec is not None and module_spec.loader is not None
+            module = importlib.util.module_from_spec(module_spec)
+            sys.modules[mod_id] = module
+            module_spec.loader.exec_module(module)
+        else:
+            module = importlib.import_module(module_name)
+    except ConfigError:
+        raise
+    except Exception as exc:  # the user's module: whatever it raises, say where
+        raise ConfigError(
+            field, spec, f"an importable module:Name ({type(exc).__name__}: {exc})"
+        ) from exc
+    factory = getattr(module, attr, None)
+    if factory is None or not callable(factory):
+        raise ConfigError(field, spec, f"a class or function named {attr!r} in {module_name}")
+    try:
+        controller = factory()
+    except Exception as exc:
+        raise ConfigError(
+            field, spec, f"{attr}() to build a controller ({type(exc).__name__}: {exc})"
+        ) from exc
+    bind(controller)  # refuse now what the simulator could not run
+    return controller
