@@ -6,8 +6,9 @@ mass, delays, lags, resistance, brake effort, outside force and initial speed dr
 from the distributions of the scenario's ``[montecarlo]`` table, and its own seed for
 the random disturbance and the speed noise.
 
-Runs go in chunks through one parallel Numba kernel (``prange`` over the runs of a
-chunk, on all local cores); only each run's scalar metrics are kept (15 floats a run),
+Runs go in chunks through one Numba kernel that releases the GIL, a slice of the chunk
+per local core on its own thread (the same loop as a single run, on the same
+description: sim/layout.py); only each run's scalar metrics are kept (15 floats a run),
 never its time series, so memory stays flat however many runs. With a Dask scheduler
 address the chunks run on a ``dask.distributed`` cluster instead; every run's
 parameters and seed depend only on the spec's seed and the run's index, so a local
