@@ -143,7 +143,7 @@ def test_bad_file_exits_2_naming_the_key_and_writes_nothing(capsys, tmp_path):
 
 def test_key_that_does_not_apply_exits_2(capsys, tmp_path):
     path = tmp_path / "lag_on_ep.toml"
-    path.write_text('[montecarlo.vary]\n"brake.lag_s" = { min = 0.4, max = 0.6 }\n')
+    path.write_text('name = "t"\n[montecarlo.vary]\n"brake.lag_s" = { min = 0.4, max = 0.6 }\n')
     code = main(["montecarlo", str(path), "--json", "--no-progress"])
     out, err = capsys.readouterr()
     assert code == 2

@@ -27,13 +27,13 @@ def test_bad_controller_value_names_the_key(
     controller: str, params: dict[str, object], key: str, allowed: str
 ) -> None:
     with pytest.raises(ScenarioError) as info:
-        scenario_from_mapping({"controller": {controller: params}})
+        scenario_from_mapping({"name": "t", "controller": {controller: params}})
     assert info.value.field == key
     assert allowed in info.value.allowed
 
 
 def test_good_controller_values_load() -> None:
     scenario = scenario_from_mapping(
-        {"controller": {"name": "pid", "pid": {"kp": 2, "output_limits": [-1, 0.5]}}}
+        {"name": "t", "controller": {"name": "pid", "pid": {"kp": 2, "output_limits": [-1, 0.5]}}}
     )
     assert scenario.controller.params["pid"]["kp"] == 2

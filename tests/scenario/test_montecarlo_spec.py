@@ -169,7 +169,7 @@ LAG_DELAY = {"model": "lag-delay", "lag_s": 0.4, "delay_s": 1.15, "max_decel_mps
 
 
 def test_lag_delay_brake_model_builds_a_lag_delay_brake():
-    scenario, _ = scenario_and_spec_from_mapping({"brake": LAG_DELAY})
+    scenario, _ = scenario_and_spec_from_mapping({"name": "t", "brake": LAG_DELAY})
     assert scenario.brake == LagDelayBrake(lag_s=0.4, delay_s=1.15, max_decel_mps2=1.2)
 
 
@@ -185,7 +185,7 @@ def test_realism_table_parses_with_balises_in_km():
         "notches": 7,
         "seed": 3,
     }
-    scenario, _ = scenario_and_spec_from_mapping({"realism": realism})
+    scenario, _ = scenario_and_spec_from_mapping({"name": "t", "realism": realism})
     assert scenario.realism.balises_m == pytest.approx((250.0, 296.5, 1000.0))
     assert scenario.realism == Realism(
         speed_noise_std_mps=0.03,
@@ -201,7 +201,7 @@ def test_realism_table_parses_with_balises_in_km():
 
 
 def test_no_realism_table_is_the_idealised_world():
-    scenario, spec = scenario_and_spec_from_mapping({})
+    scenario, spec = scenario_and_spec_from_mapping({"name": "t"})
     assert scenario.realism == Realism()
     assert spec is None
 
@@ -225,7 +225,7 @@ def test_montecarlo_table_parses():
             },
         }
     }
-    _, spec = scenario_and_spec_from_mapping(mapping)
+    _, spec = scenario_and_spec_from_mapping({"name": "t", **mapping})
     assert spec == MonteCarloSpec(
         runs=250,
         seed=17,
@@ -243,7 +243,7 @@ def test_region_accel_is_times_the_effective_mass():
         "train": {"mass_t": 300.0, "rotating_mass_factor": 0.1},
         "disturbance": {"regions": [{"start_km": 0.1, "end_km": 0.2, "accel_mps2": 0.05}]},
     }
-    scenario, _ = scenario_and_spec_from_mapping(mapping)
+    scenario, _ = scenario_and_spec_from_mapping({"name": "t", **mapping})
     (region,) = scenario.disturbance.regions
     assert (region.start_m, region.end_m) == pytest.approx((100.0, 200.0))
     assert region.force_n == pytest.approx(0.05 * 300e3 * 1.1)
@@ -340,7 +340,7 @@ BAD = [
 @pytest.mark.parametrize(("mapping", "key", "value"), [pytest.param(*c[1:], id=c[0]) for c in BAD])
 def test_bad_entry_raises_scenario_error_naming_key_and_value(mapping, key, value):
     with pytest.raises(ScenarioError) as info:
-        scenario_and_spec_from_mapping(mapping)
+        scenario_and_spec_from_mapping({"name": "t", **mapping})
     assert info.value.field == key
     assert info.value.value == value
     assert str(info.value).startswith(f"{key} = {value!r} is not allowed")
@@ -357,13 +357,15 @@ def test_bad_entry_raises_scenario_error_naming_key_and_value(mapping, key, valu
 )
 def test_region_needs_exactly_one_of_force_and_accel(region):
     with pytest.raises(ScenarioError, match="exactly one of force_kn or accel_mps2") as info:
-        scenario_and_spec_from_mapping({"disturbance": {"regions": [region]}})
+        scenario_and_spec_from_mapping({"name": "t", "disturbance": {"regions": [region]}})
     assert info.value.field.startswith("disturbance.regions[0].")
 
 
 def test_bad_montecarlo_file_is_refused_when_read(tmp_path):
     path = tmp_path / "bad.toml"
-    path.write_text('[montecarlo.vary]\n"train.mass_t" = { min = 600.0, max = 500.0 }\n')
+    path.write_text(
+        'name = "t"\n[montecarlo.vary]\n"train.mass_t" = { min = 600.0, max = 500.0 }\n'
+    )
     with pytest.raises(ScenarioError, match=r"montecarlo\.vary\.train\.mass_t\.min"):
         load_scenario_and_spec(path)
 

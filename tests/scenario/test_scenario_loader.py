@@ -8,6 +8,7 @@ import pytest
 
 from railpilot.errors import ScenarioError
 from railpilot.scenario.loader import load_scenario, scenario_from_mapping
+from railpilot.scenario.model import Scenario
 from railpilot.units import kmh_to_mps
 
 MINIMAL = """\
@@ -47,17 +48,54 @@ def test_minimal_file_loads_with_units_converted(tmp_path):
     assert scenario.sim.n_steps == 4000
 
 
-def test_empty_mapping_gives_paper000_defaults():
-    scenario = scenario_from_mapping({})
+def test_a_file_naming_only_what_is_required_gives_exactly_the_dataclass_defaults(tmp_path):
+    # defaults live in the typed config dataclasses only (issue 9): the loader passes on
+    # what the file says and nothing else
+    path = tmp_path / "minimal.toml"
+    path.write_text('name = "minimal"\n')
+    assert load_scenario(path) == Scenario(name="minimal")
+    # and they are paper 000's world: braking at the 20 km point after a 2 s coast at
+    # 72 km/h (the curve starts 40 m before it)
+    scenario = Scenario(name="minimal")
+    assert scenario.reference.start_m == 20_000.0 - 2.0 * 20.0
     assert scenario.train.mass_kg == 536e3
     assert scenario.brake.delay_s == 0.3
-    assert scenario.brake.air_lag_s == 0.65
     assert scenario.controller.name == "smarc"
+    assert scenario.sim.control_period_s == scenario.sim.dt_s
+
+
+def test_an_empty_scenario_file_is_an_error_naming_what_is_missing(tmp_path):
+    path = tmp_path / "empty.toml"
+    path.write_text("")
+    with pytest.raises(ScenarioError) as info:
+        load_scenario(path)
+    assert info.value.field == "name"
+    assert "the one key every scenario file must give" in str(info.value)
+
+
+@pytest.mark.parametrize(
+    ("table", "given"),
+    [
+        ("train", {"mass_t": 500.0}),
+        ("brake", {"air_lag_s": 0.7}),
+        ("reference", {"coast_s": 1.0}),
+        ("sim", {"dt_s": 0.02}),
+        ("realism", {"adhesion": 0.2}),
+        ("disturbance", {"constant_kn": 1.0}),
+    ],
+)
+def test_a_table_naming_one_key_keeps_every_other_default(table, given):
+    scenario = scenario_from_mapping({"name": "t", table: given})
+    default = Scenario(name="t")
+    for other in ("train", "brake", "reference", "sim", "realism", "disturbance", "line"):
+        if other != table:
+            assert getattr(scenario, other) == getattr(default, other), other
 
 
 def test_units_at_the_edge_become_si():
     scenario = scenario_from_mapping(
         {
+            "name": "t",
             "train": {"electric_brake": {"max_force_kn": 300.0, "max_power_kw": 4000.0}},
             "brake": {"fade_rate_kn_per_s": 200.0},
             "disturbance": {
@@ -78,7 +116,12 @@ def test_units_at_the_edge_become_si():
 
 def test_controller_parameter_lists_become_tuples():
     scenario = scenario_from_mapping(
-        {"controller": {"smarc": {"gamma": [0.1, 0.2], "theta_bounds": [[0.8, 1.3], [-0.2, 0.2]]}}}
+        {
+            "name": "t",
+            "controller": {
+                "smarc": {"gamma": [0.1, 0.2], "theta_bounds": [[0.8, 1.3], [-0.2, 0.2]]}
+            },
+        }
     )
     params = scenario.controller.params["smarc"]
     assert params["gamma"] == (0.1, 0.2)
@@ -188,7 +231,7 @@ BAD = [
 )
 def test_bad_input_raises_scenario_error_naming_key_value_and_allowed(mapping, key, value, allowed):
     with pytest.raises(ScenarioError) as info:
-        scenario_from_mapping(mapping)
+        scenario_from_mapping({"name": "t", **mapping})
     message = str(info.value)
     assert info.value.field == key
     assert message.startswith(f"{key} = {value}")
@@ -221,14 +264,14 @@ BAD_IN_FILE_UNITS = [
 @pytest.mark.parametrize(("mapping", "key", "value"), BAD_IN_FILE_UNITS)
 def test_error_names_the_key_and_value_as_written_in_the_file(mapping, key, value):
     with pytest.raises(ScenarioError) as info:
-        scenario_from_mapping(mapping)
+        scenario_from_mapping({"name": "t", **mapping})
     assert info.value.field == key
     assert info.value.value == value
 
 
 def test_negative_seed_is_rejected_at_load():
     with pytest.raises(ScenarioError) as info:
-        scenario_from_mapping({"disturbance": {"random_std_kn": 10.0, "seed": -1}})
+        scenario_from_mapping({"name": "t", "disturbance": {"random_std_kn": 10.0, "seed": -1}})
     assert info.value.field == "disturbance.seed"
 
 

@@ -64,7 +64,8 @@ def test_freeze_ato_keeps_the_reference_mode_and_replay_is_exact() -> None:
 
 
 def test_loader_reads_and_checks_the_reference_mode() -> None:
-    assert scenario_from_mapping({"ato": {"reference": "distance"}}).ato.reference == "distance"
+    loaded = scenario_from_mapping({"name": "t", "ato": {"reference": "distance"}})
+    assert loaded.ato.reference == "distance"
     with pytest.raises(ScenarioError) as info:
-        scenario_from_mapping({"ato": {"reference": "position"}})
+        scenario_from_mapping({"name": "t", "ato": {"reference": "position"}})
     assert info.value.field == "ato.reference"

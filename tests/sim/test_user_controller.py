@@ -168,9 +168,9 @@ def test_a_compiled_user_controller_runs_in_the_monte_carlo_like_alone() -> None
 def test_unknown_names_are_errors_that_name_the_allowed_ones() -> None:
     with pytest.raises(ConfigError, match="one of pid, smarc, qsmc"):
         controller_entry("lqr")
-    with pytest.raises(ConfigError, match="one of ep-blended, lag-delay"):
+    with pytest.raises(ConfigError, match="one of ep-blended, lag-delay, brake-pipe"):
         brake_entry("disc")
-    assert set(BRAKES) == {"ep-blended", "lag-delay"}
+    assert set(BRAKES) == {"ep-blended", "lag-delay", "brake-pipe"}
     with pytest.raises(ConfigError, match=r"existing file"):
         load_controller("no/such/file.py:Thing")
     with pytest.raises(ConfigError, match=r"named 'Nope'"):

@@ -307,7 +307,7 @@ def ep_brake_step(
     a_cmd = max(f_cmd - min(e, e_expected), 0.0)
     a = a_cmd + (state[S_A] - a_cmd) * p[P_ALPHA_A]
     state[S_A] = a
-    v_kmh = speed_mps * 3.6
+    v_kmh = speed_mps * KMH_PER_MPS
     g = (p[P_B1] * np.exp(-p[P_B2] * v_kmh) + p[P_B3]) / p[P_B3]
     return e, a * g
 

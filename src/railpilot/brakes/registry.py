@@ -15,6 +15,7 @@ from dataclasses import dataclass
 from railpilot.errors import ConfigError
 
 from .base import BrakeModel, BrakeStep
+from .brake_pipe import BrakePipeBrake, brake_pipe_ato_step
 from .ep_blend import EPBrake, ep_ato_step
 from .lag_delay_brake import LagDelayBrake, lag_delay_ato_step
 
@@ -33,6 +34,7 @@ BRAKES: dict[str, BrakeEntry] = {
     for entry in (
         BrakeEntry("ep-blended", EPBrake, ep_ato_step),
         BrakeEntry("lag-delay", LagDelayBrake, lag_delay_ato_step),
+        BrakeEntry("brake-pipe", BrakePipeBrake, brake_pipe_ato_step),
     )
 }
 

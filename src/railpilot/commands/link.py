@@ -24,6 +24,7 @@ from typing import Any, TextIO
 from railpilot.commands._common import json_line, log, print_json
 from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.link.errors import LinkConfigError, LinkError
+from railpilot.units import kmh_to_mps, mps_to_kmh
 
 DEFAULT_PORT = 7400
 DEFAULT_ADMIN_PORT = 7401
@@ -480,7 +481,7 @@ def _onboard_run(args: argparse.Namespace) -> int:
         raise LinkConfigError("--speed-kmh/--decel", (args.speed_kmh, args.decel), ">= 0")
     trajectory = Trajectory(
         start_m=args.start_km * 1000.0,
-        speed_mps=args.speed_kmh / 3.6,
+        speed_mps=kmh_to_mps(args.speed_kmh),
         decel_mps2=args.decel,
         direction=TravelDirection.UP if args.direction == "up" else TravelDirection.DOWN,
     )
@@ -503,7 +504,7 @@ def _onboard_run(args: argparse.Namespace) -> int:
                 "end_km": t.end_m / 1000,
                 "zone_start_km": t.zone_start_m / 1000,
                 "zone_end_km": t.zone_end_m / 1000,
-                "limit_kmh": round(t.limit_mps * 3.6, 2),
+                "limit_kmh": round(mps_to_kmh(t.limit_mps), 2),
             }
             for s, t in client.endpoint.active_tsrs.items()
         },

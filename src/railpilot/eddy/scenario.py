@@ -47,7 +47,7 @@ from railpilot.eddy.table import TorqueTable, load_torque_table_csv
 from railpilot.eddy.torque_model import EddyBrakeParams
 from railpilot.eddy.train import TrainParams
 from railpilot.errors import ConfigError, ScenarioError
-from railpilot.units import kmh_to_mps
+from railpilot.units import kmh_to_mps, mps_to_kmh
 
 KIND = "eddy-brake"
 CONTROLLERS: tuple[str, ...] = ("open_loop", "pid", "fuzzy", "fuzzy_pi")
@@ -289,7 +289,7 @@ class EddyScenario:
         ok = np.array(
             [table.torque(self.coil.current_limit_a, s) >= self.torque_demand_nm for s in speeds]
         )
-        return float(speeds[np.argmax(ok)] * 3.6) if ok.any() else math.nan
+        return float(mps_to_kmh(speeds[np.argmax(ok)])) if ok.any() else math.nan
 
     def run(
         self, controller: str | None = None, *, record_every: int | None = None

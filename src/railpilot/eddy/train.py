@@ -19,6 +19,7 @@ from numba import njit
 from railpilot.eddy.torque_model import WHEEL_DIAMETER_M
 from railpilot.errors import ConfigError
 from railpilot.units import G_MPS2, KMH_PER_MPS
+from railpilot.vehicle.resistance import davis_specific_resistance
 
 T_MASS, T_DW, T_A, T_B, T_C = range(5)
 N_TRAIN = 5
@@ -79,7 +80,7 @@ def train_step(speed_mps: float, torque_nm: float, train: np.ndarray, dt: float)
     if speed_mps <= 0.0:
         return 0.0
     v_kmh = speed_mps * KMH_PER_MPS
-    w0 = train[T_A] + train[T_B] * v_kmh + train[T_C] * v_kmh * v_kmh
+    w0 = davis_specific_resistance(v_kmh, train[T_A], train[T_B], train[T_C])
     mass = train[T_MASS]
     force = 2.0 * torque_nm / train[T_DW] + w0 * mass * G_MPS2 / 1000.0
     nxt = speed_mps - force / mass * dt

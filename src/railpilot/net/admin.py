@@ -34,6 +34,7 @@ from typing import Any
 
 from railpilot.errors import RailpilotError
 from railpilot.link import DispatchCommand, LinkError, TargetPoint, TargetReason, TsrSet
+from railpilot.units import kmh_to_mps
 
 from .logfmt import kv
 from .server import GroundServer
@@ -157,7 +158,7 @@ class AdminServer:
                     session,
                     start_km * 1000.0,
                     end_km * 1000.0,
-                    _number(request, "limit_kmh", 0.1, 360.0) / 3.6,
+                    kmh_to_mps(_number(request, "limit_kmh", 0.1, 360.0)),
                     float(start),
                     float(start) + valid_s,
                 )

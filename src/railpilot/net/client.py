@@ -55,6 +55,7 @@ from railpilot.link import (
     TsrRefused,
 )
 from railpilot.link.framing import ABSOLUTE_MAX_FRAME_LENGTH
+from railpilot.units import mps_to_kmh
 
 from .logfmt import kv
 from .rejections import RejectionLog
@@ -350,7 +351,7 @@ class OnboardClient:
                 zone_start_m=t.zone_start_m,
                 zone_end_m=t.zone_end_m,
                 extended_by_m=self.config.train_length_m,
-                limit_kmh=round(t.limit_mps * 3.6, 2),
+                limit_kmh=round(mps_to_kmh(t.limit_mps), 2),
             )
         elif isinstance(event, TsrCancelled | TsrExpired):
             kv(log, logging.INFO, _snake(type(event).__name__), train=train, session=event.session)

@@ -44,6 +44,7 @@ from railpilot.link import (
     TsrApplied,
     TsrSet,
 )
+from railpilot.units import kmh_to_mps
 
 from .client import OnboardClient, Trajectory
 from .server import GroundServer
@@ -271,7 +272,7 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
         # registration, from their record).
         await asyncio.sleep(max(0.0, start_at + options.seconds * options.tsr_at - time.time()))
         now = time.time()
-        tsr = TsrSet(TSR_SESSION, 120_000.0, 121_500.0, 45 / 3.6, now, now + 3600.0)
+        tsr = TsrSet(TSR_SESSION, 120_000.0, 121_500.0, kmh_to_mps(45.0), now, now + 3600.0)
         t_broadcast = time.perf_counter()
         results = await server.paced(server.set_tsr, ids, tsr)
         broadcast_ms = (time.perf_counter() - t_broadcast) * 1000.0

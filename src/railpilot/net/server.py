@@ -61,6 +61,7 @@ from railpilot.link import (
     TsrSet,
 )
 from railpilot.link.config import REPLAY_WINDOW_S
+from railpilot.units import mps_to_kmh
 
 from .logfmt import kv
 from .rejections import RejectionLog
@@ -462,7 +463,7 @@ class GroundServer:
                     if info is None
                     else {
                         "position_km": round(info.position_m / 1000.0, 5),
-                        "speed_kmh": round(info.speed_mps * 3.6, 2),
+                        "speed_kmh": round(mps_to_kmh(info.speed_mps), 2),
                         "direction": info.direction.name,
                         "age_s": round(now - (view.running_info_at_s or now), 3),
                         # a dispatcher must not take a position for live when the train

@@ -42,14 +42,16 @@ def speed_distance(results: Mapping[str, SimResult], changeover_mps: float) -> F
         i = _moving(r)
         ax.plot(
             r["position_m"][i] - stop_m,
-            r["speed_mps"][i] * 3.6,
+            mps_to_kmh(r["speed_mps"][i]),
             color=COLORS.get(name),
             label=name.upper(),
         )
-        zoom.plot(r["position_m"][i] - stop_m, r["speed_mps"][i] * 3.6, color=COLORS.get(name))
+        zoom.plot(
+            r["position_m"][i] - stop_m, mps_to_kmh(r["speed_mps"][i]), color=COLORS.get(name)
+        )
     i = _moving(first)
     ref_x = first["ref_position_m"] - stop_m
-    ref_v = first["ref_speed_mps"] * 3.6
+    ref_v = mps_to_kmh(first["ref_speed_mps"])
     for a in (ax, zoom):
         a.plot(ref_x, ref_v, "k--", lw=1, label="target curve" if a is ax else None)
         a.axhline(float(mps_to_kmh(changeover_mps)), color="grey", lw=0.6, ls=":")

@@ -43,6 +43,7 @@ from railpilot.net.client import OnboardClient, Trajectory
 from railpilot.net.proxy import FaultProxy, ProxyOptions
 from railpilot.net.server import GroundServer
 from railpilot.reproduce.base import Reproduction, Table
+from railpilot.units import kmh_to_mps
 
 GROUND_ID = 1
 #: (train id, train number, length [m], direction, start km post [km])
@@ -150,7 +151,7 @@ async def _scenario(session: int, lossy: bool) -> dict[str, Any]:
         registered = await _until(lambda: all(c.registrations for c in clients))
         await asyncio.sleep(0.5)  # running info (and so the direction) has reached the core
         now = time.time()
-        tsr = TsrSet(session, TSR_START_M, TSR_END_M, TSR_LIMIT_KMH / 3.6, now, now + 600.0)
+        tsr = TsrSet(session, TSR_START_M, TSR_END_M, kmh_to_mps(TSR_LIMIT_KMH), now, now + 600.0)
         ids = [t[0] for t in TRAINS]
         server.set_tsr(ids, tsr)
         all_acked = await _until(lambda: record.acked >= set(ids))

@@ -113,6 +113,7 @@ def _metrics(result: SimResult) -> dict[str, Any]:
 
 
 def _sweep(base: Scenario) -> list[dict[str, Any]]:
+    assert isinstance(base.brake, EPBrake)  # paper 000 is an EP-brake scenario
     rows = []
     cases: list[tuple[str, Scenario]] = []
     for delay in (0.2, 0.3, 0.4, 0.5):

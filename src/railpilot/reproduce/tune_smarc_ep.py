@@ -12,6 +12,7 @@ from __future__ import annotations
 import json
 from dataclasses import replace
 
+from railpilot.brakes.ep_blend import EPBrake
 from railpilot.reproduce.smarc_ep import nominal_scenario, paper_scenario
 from railpilot.reproduce.tuning_search import Grid, report
 from railpilot.scenario.model import Scenario
@@ -33,6 +34,7 @@ SMARC_GRID: Grid = {
 def uncertainty_set() -> list[Scenario]:
     """The scenarios every candidate is judged on."""
     paper = paper_scenario()
+    assert isinstance(paper.brake, EPBrake)  # paper 000 is an EP-brake scenario
     out = [nominal_scenario(), paper]
     out += [replace(paper, brake=replace(paper.brake, delay_s=d)) for d in (0.2, 0.4)]
     out += [

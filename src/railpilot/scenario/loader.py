@@ -4,9 +4,14 @@ Papers' units at the edge (t, km/h, kN, km posts), SI inside. Every key is check
 unknown keys, wrong types and out-of-range values raise ScenarioError naming the
 dotted key, the value and what is allowed; nothing runs on a bad file.
 
+``name`` is the one key a file must give; every other key has a default, and the
+defaults live in one place only, the typed config dataclasses (Scenario, Train, EPBrake,
+SmoothStopSpec, ...): a key the file leaves out is not passed to the constructor, so a
+file with only ``name = "x"`` loads as exactly ``Scenario(name="x")``.
+
 The file layout (examples/paper000_smarc_ep.toml is a complete one)::
 
-    name = "..."
+    name = "..."                   # required
     kind = "ep-braking"            # "eddy-brake" files are routed to railpilot.eddy
     [train]  mass_t, rotating_mass_factor, length_m, davis = [a0, a1, a2],
              max_service_decel_mps2, motor_cars
@@ -18,6 +23,9 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              jerk_limit_mps3, changeover_kmh, fade_rate_kn_per_s, prenotice_s,
              cutout_cars, cutout_time_s, beta = [b1, b2, b3]
              model = "lag-delay" (paper 002): lag_s, delay_s, max_decel_mps2
+             model = "brake-pipe" (heavy haul): position = "G" | "P", application_time_s,
+             release_time_s, application_wave_mps, release_wave_mps, n_segments,
+             max_decel_mps2, reaction_s (docs/heavy-haul-brake.md)
     [reference]  shape = "smooth" | "constant", start_km, v0_kmh, decel_mps2,
              jerk_mps3, final_decel_mps2, final_phase_speed_kmh,
              coast_s, ease_out
@@ -25,7 +33,8 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              regions = [{start_km, end_km, force_kn | accel_mps2}]
     [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s,
              reference = "time" | "distance"
-    [controller]  name = "pid" | "smarc" | "qsmc"; [controller.NAME] its parameters
+    [controller]  name = "pid" | "smarc" | "qsmc" | "module:Name" (your own,
+             control/user.py); [controller.NAME] a built-in's parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
     [realism]  speed_noise_std_mps, speed_resolution_mps, wheel_scale_error, slide_slip,
              balises_km = [...], adhesion, slide_ratio, notches, seed
@@ -43,15 +52,25 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
+from railpilot.brakes.registry import BRAKES
 from railpilot.errors import ConfigError, ScenarioError
-from railpilot.scenario.model import CONTROLLERS, ATOModel, ControllerSpec, Scenario, SimSettings
+from railpilot.scenario.model import (
+    CONTROLLERS,
+    ATOModel,
+    ConstantDecelSpec,
+    ControllerSpec,
+    Scenario,
+    SimSettings,
+    SmoothStopSpec,
+)
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.disturbance import Disturbance, Region
 from railpilot.sim.realism import Realism
-from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
-from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, tonne_to_kg
+from railpilot.sim.reference import BrakingCurve
+from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, mps_to_kmh, tonne_to_kg
 from railpilot.vehicle.line import Line, Segment, Station
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
 
@@ -143,6 +162,34 @@ class _Table:
             raise ScenarioError(self.key(name), value, f"a list of {count} numbers")
         return tuple(float(v) for v in value)
 
+    def put(
+        self,
+        kwargs: dict[str, Any],
+        name: str,
+        field: str,
+        convert: Callable[[float], Any] = float,
+        *,
+        read: str = "number",
+        gt: float | None = None,
+        ge: float | None = None,
+    ) -> None:
+        """``kwargs[field] = convert(value)`` when the file gives ``name``; nothing otherwise.
+
+        The typed constructor's own default applies to every key the file leaves out:
+        defaults are written once, in the config dataclasses.
+        """
+        self.used.add(name)
+        if name not in self.data:
+            return
+        if read == "integer":
+            kwargs[field] = self.integer(name, 0)
+        elif read == "flag":
+            kwargs[field] = self.flag(name, False)
+        elif read == "string":
+            kwargs[field] = self.string(name, "")
+        else:
+            kwargs[field] = convert(self.number(name, gt=gt, ge=ge))
+
     def table(self, name: str) -> _Table:
         self.used.add(name)
         return _Table(self.data.get(name, {}), self.key(name))
@@ -184,11 +231,11 @@ _FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
     "brake.beta1": ("brake.beta[0]", lambda v: v),
     "brake.beta2": ("brake.beta[1]", lambda v: v),
     "brake.beta3": ("brake.beta[2]", lambda v: v),
-    "reference.v0": ("reference.v0_kmh", lambda v: v * 3.6),
+    "reference.v0": ("reference.v0_kmh", mps_to_kmh),
     "reference.decel": ("reference.decel_mps2", lambda v: v),
     "reference.jerk": ("reference.jerk_mps3", lambda v: v),
     "reference.final_decel": ("reference.final_decel_mps2", lambda v: v),
-    "reference.final_phase_speed": ("reference.final_phase_speed_kmh", lambda v: v * 3.6),
+    "reference.final_phase_speed": ("reference.final_phase_speed_kmh", mps_to_kmh),
     "disturbance.constant_n": ("disturbance.constant_kn", lambda v: v / 1000.0),
     "disturbance.random_std_n": ("disturbance.random_std_kn", lambda v: v / 1000.0),
 }
@@ -225,30 +272,25 @@ def _build(path: str, make: Callable[[], T]) -> T:
 
 
 def _train(t: _Table) -> Train:
-    davis = t.numbers("davis", 3) or (0.42, 0.0016, 0.000132)
-    eb = t.table("electric_brake")
-    curve = _build(
-        "train.electric_brake",
-        lambda: ElectricBrakeCurve(
-            max_force_n=kn_to_n(eb.number("max_force_kn", 380.0)),
-            max_power_w=eb.number("max_power_kw", 4800.0) * 1000.0,
-        ),
-    )
-    eb.done()
-    train = _build(
-        "train",
-        lambda: Train(
-            mass_kg=tonne_to_kg(t.number("mass_t", 536.0, gt=0)),
-            rotating_mass_factor=t.number("rotating_mass_factor", 0.06),
-            length_m=t.number("length_m", 140.0, gt=0),
-            davis_a0=davis[0],
-            davis_a1=davis[1],
-            davis_a2=davis[2],
-            max_service_decel_mps2=t.number("max_service_decel_mps2", 1.0, gt=0),
-            electric_brake=curve,
-            motor_cars=t.integer("motor_cars", 4),
-        ),
-    )
+    kw: dict[str, Any] = {}
+    t.put(kw, "mass_t", "mass_kg", tonne_to_kg, gt=0)
+    t.put(kw, "rotating_mass_factor", "rotating_mass_factor")
+    t.put(kw, "length_m", "length_m", gt=0)
+    t.put(kw, "max_service_decel_mps2", "max_service_decel_mps2", gt=0)
+    t.put(kw, "motor_cars", "motor_cars", read="integer")
+    davis = t.numbers("davis", 3)
+    if davis is not None:
+        kw["davis_a0"], kw["davis_a1"], kw["davis_a2"] = davis
+    if t.has("electric_brake"):
+        eb = t.table("electric_brake")
+        curve_kw: dict[str, Any] = {}
+        eb.put(curve_kw, "max_force_kn", "max_force_n", kn_to_n)
+        eb.put(curve_kw, "max_power_kw", "max_power_w", lambda v: v * 1000.0)
+        kw["electric_brake"] = _build(
+            "train.electric_brake", lambda: ElectricBrakeCurve(**curve_kw)
+        )
+        eb.done()
+    train = _build("train", lambda: Train(**kw))
     t.done()
     return train
 
@@ -283,66 +325,66 @@ def _line(t: _Table) -> Line:
     return line
 
 
-def _brake(t: _Table) -> EPBrake | LagDelayBrake:
-    model = t.string("model", "ep-blended", ("ep-blended", "lag-delay"))
-    if model == "lag-delay":
-        ld = _build(
-            "brake",
-            lambda: LagDelayBrake(
-                lag_s=t.number("lag_s", 0.5),
-                delay_s=t.number("delay_s", 1.2),
-                max_decel_mps2=t.number("max_decel_mps2", 1.0, gt=0),
-            ),
-        )
+def _brake(t: _Table) -> EPBrake | LagDelayBrake | BrakePipeBrake:
+    model = t.string("model", EPBrake.name, tuple(BRAKES))
+    kw: dict[str, Any] = {}
+    if model == BrakePipeBrake.name:
+        t.put(kw, "position", "position", read="string")
+        for name in (
+            "application_time_s",
+            "release_time_s",
+            "application_wave_mps",
+            "release_wave_mps",
+            "max_decel_mps2",
+            "reaction_s",
+        ):
+            t.put(kw, name, name)
+        t.put(kw, "n_segments", "n_segments", read="integer")
+        bp = _build("brake", lambda: BrakePipeBrake(**kw))
+        t.done()
+        return bp
+    if model == LagDelayBrake.name:
+        t.put(kw, "lag_s", "lag_s")
+        t.put(kw, "delay_s", "delay_s")
+        t.put(kw, "max_decel_mps2", "max_decel_mps2", gt=0)
+        ld = _build("brake", lambda: LagDelayBrake(**kw))
         t.done()
         return ld
-    beta = t.numbers("beta", 3) or (0.138, 0.168, 0.221)
-    brake = _build(
-        "brake",
-        lambda: EPBrake(
-            delay_s=t.number("delay_s", 0.3),
-            air_lag_s=t.number("air_lag_s", 0.65),
-            electric_lag_s=t.number("electric_lag_s", 0.3),
-            jerk_limit_mps3=t.number("jerk_limit_mps3", 0.75),
-            changeover_kmh=t.number("changeover_kmh", 6.0),
-            fade_rate_n_per_s=kn_to_n(t.number("fade_rate_kn_per_s", 300.0)),
-            prenotice_s=t.number("prenotice_s", 0.65),
-            cutout_cars=t.integer("cutout_cars", 0),
-            cutout_time_s=t.number("cutout_time_s", 0.0),
-            beta1=beta[0],
-            beta2=beta[1],
-            beta3=beta[2],
-        ),
-    )
+    for name in ("delay_s", "air_lag_s", "electric_lag_s", "jerk_limit_mps3"):
+        t.put(kw, name, name)
+    t.put(kw, "changeover_kmh", "changeover_kmh")
+    t.put(kw, "fade_rate_kn_per_s", "fade_rate_n_per_s", kn_to_n)
+    t.put(kw, "prenotice_s", "prenotice_s")
+    t.put(kw, "cutout_cars", "cutout_cars", read="integer")
+    t.put(kw, "cutout_time_s", "cutout_time_s")
+    beta = t.numbers("beta", 3)
+    if beta is not None:
+        kw["beta1"], kw["beta2"], kw["beta3"] = beta
+    brake = _build("brake", lambda: EPBrake(**kw))
     t.done()
     return brake
 
 
 def _reference(t: _Table) -> BrakingCurve:
     shape = t.string("shape", "smooth", ("smooth", "constant"))
-    start = km_post_to_m(t.number("start_km", 0.0))
-    v0 = kmh_to_mps(t.number("v0_kmh", 72.0))
+    kw: dict[str, Any] = {}
+    t.put(kw, "start_km", "start_m", km_post_to_m)
+    t.put(kw, "v0_kmh", "v0_mps", kmh_to_mps)
+    t.put(kw, "coast_s", "coast_s")
+    t.put(kw, "decel_mps2", "decel_mps2")
     if shape == "constant":
-        curve = _build(
-            "reference",
-            lambda: constant_deceleration(
-                v0, t.number("decel_mps2"), start, coast_s=t.number("coast_s", 0.0)
-            ),
+        if "decel_mps2" not in kw:
+            t.number("decel_mps2")  # required for this shape: raises naming the key
+        spec: SmoothStopSpec | ConstantDecelSpec = _build(
+            "reference", lambda: ConstantDecelSpec(**kw)
         )
     else:
-        curve = _build(
-            "reference",
-            lambda: smooth_stop(
-                v0,
-                t.number("decel_mps2", 0.5),
-                t.number("jerk_mps3", 0.5),
-                t.number("final_decel_mps2", 0.3),
-                kmh_to_mps(t.number("final_phase_speed_kmh", 7.2)),
-                start,
-                coast_s=t.number("coast_s", 0.0),
-                ease_out=t.flag("ease_out", False),
-            ),
-        )
+        t.put(kw, "jerk_mps3", "jerk_mps3")
+        t.put(kw, "final_decel_mps2", "final_decel_mps2")
+        t.put(kw, "final_phase_speed_kmh", "final_phase_speed_mps", kmh_to_mps)
+        t.put(kw, "ease_out", "ease_out", read="flag")
+        spec = _build("reference", lambda: SmoothStopSpec(**kw))
+    curve = _build("reference", spec.build)
     t.done()
     return curve
 
@@ -367,17 +409,13 @@ def _disturbance(t: _Table, effective_mass_kg: float) -> Disturbance:
             )
         )
         item.done()
-    dist = _build(
-        "disturbance",
-        lambda: Disturbance(
-            constant_n=kn_to_n(t.number("constant_kn", 0.0)),
-            regions=tuple(regions),
-            random_std_n=kn_to_n(t.number("random_std_kn", 0.0)),
-            random_hold_s=t.number("random_hold_s", 1.0),
-            target_fraction=t.number("target_fraction", 0.0),
-            seed=t.integer("seed", 0),
-        ),
-    )
+    kw: dict[str, Any] = {"regions": tuple(regions)}
+    t.put(kw, "constant_kn", "constant_n", kn_to_n)
+    t.put(kw, "random_std_kn", "random_std_n", kn_to_n)
+    t.put(kw, "random_hold_s", "random_hold_s")
+    t.put(kw, "target_fraction", "target_fraction")
+    t.put(kw, "seed", "seed", read="integer")
+    dist = _build("disturbance", lambda: Disturbance(**kw))
     t.done()
     return dist
 
@@ -390,20 +428,18 @@ def _realism(t: _Table) -> Realism:
         isinstance(b, bool) or not isinstance(b, int | float) for b in balises
     ):
         raise ScenarioError(t.key("balises_km"), balises, "a list of km posts")
-    realism = _build(
-        "realism",
-        lambda: Realism(
-            speed_noise_std_mps=t.number("speed_noise_std_mps", 0.0, ge=0),
-            speed_resolution_mps=t.number("speed_resolution_mps", 0.0, ge=0),
-            wheel_scale_error=t.number("wheel_scale_error", 0.0),
-            slide_slip=t.number("slide_slip", 0.0),
-            balises_m=tuple(km_post_to_m(float(b)) for b in balises),
-            adhesion=t.number("adhesion", 0.0, ge=0),
-            slide_ratio=t.number("slide_ratio", 0.8),
-            notches=t.integer("notches", 0),
-            seed=t.integer("seed", 0),
-        ),
-    )
+    kw: dict[str, Any] = {}
+    if balises:
+        kw["balises_m"] = tuple(km_post_to_m(float(b)) for b in balises)
+    t.put(kw, "speed_noise_std_mps", "speed_noise_std_mps", ge=0)
+    t.put(kw, "speed_resolution_mps", "speed_resolution_mps", ge=0)
+    t.put(kw, "wheel_scale_error", "wheel_scale_error")
+    t.put(kw, "slide_slip", "slide_slip")
+    t.put(kw, "adhesion", "adhesion", ge=0)
+    t.put(kw, "slide_ratio", "slide_ratio")
+    t.put(kw, "notches", "notches", read="integer")
+    t.put(kw, "seed", "seed", read="integer")
+    realism = _build("realism", lambda: Realism(**kw))
     t.done()
     return realism
 
@@ -429,43 +465,31 @@ def _montecarlo(t: _Table) -> MonteCarloSpec | None:
         vary.append(_build("montecarlo.vary", _distribution_maker(key, item)))
         item.done()
     table.done()
-    spec = _build(
-        "montecarlo",
-        lambda: MonteCarloSpec(
-            runs=t.integer("runs", 1000),
-            seed=t.integer("seed", 0),
-            vary=tuple(vary),
-            chunk=t.integer("chunk", 500),
-        ),
-    )
+    kw: dict[str, Any] = {"vary": tuple(vary)}
+    for name in ("runs", "seed", "chunk"):
+        t.put(kw, name, name, read="integer")
+    spec = _build("montecarlo", lambda: MonteCarloSpec(**kw))
     t.done()
     return spec
 
 
 def _ato(t: _Table) -> ATOModel:
-    mass_t = t.optional_number("mass_t")
-    ato = _build(
-        "ato",
-        lambda: ATOModel(
-            mass_kg=tonne_to_kg(mass_t) if mass_t is not None else None,
-            davis=t.numbers("davis", 3),  # type: ignore[arg-type]
-            brake_delay_s=t.optional_number("brake_delay_s"),
-            brake_lag_s=t.optional_number("brake_lag_s"),
-            reference=t.string("reference", "time", ("time", "distance")),
-        ),
-    )
+    kw: dict[str, Any] = {}
+    t.put(kw, "mass_t", "mass_kg", tonne_to_kg)
+    t.put(kw, "brake_delay_s", "brake_delay_s")
+    t.put(kw, "brake_lag_s", "brake_lag_s")
+    t.put(kw, "reference", "reference", read="string")
+    davis = t.numbers("davis", 3)
+    if davis is not None:
+        kw["davis"] = davis
+    ato = _build("ato", lambda: ATOModel(**kw))
     t.done()
     return ato
 
 
 def _controller(t: _Table) -> ControllerSpec:
-    name = t.string("name", "smarc")
-    if name not in CONTROLLERS and ":" not in name:
-        raise ScenarioError(
-            t.key("name"),
-            name,
-            f"one of {', '.join(CONTROLLERS)} or module:Name (your own controller)",
-        )
+    kw: dict[str, Any] = {}
+    t.put(kw, "name", "name", read="string")
     params: dict[str, dict[str, Any]] = {}
     for ctrl in CONTROLLERS:
         if t.has(ctrl):
@@ -479,20 +503,16 @@ def _controller(t: _Table) -> ControllerSpec:
                 for k, v in sub.items()
             }
     t.done()
-    return ControllerSpec(name, params)
+    return _build("controller", lambda: ControllerSpec(params=params, **kw))
 
 
 def _sim(t: _Table) -> SimSettings:
-    dt = t.number("dt_s", 0.01)
-    sim = _build(
-        "sim",
-        lambda: SimSettings(
-            dt_s=dt,
-            duration_s=t.number("duration_s", 70.0),
-            control_period_s=t.number("control_period_s", dt),
-            record_every=t.integer("record_every", 1),
-        ),
-    )
+    kw: dict[str, Any] = {}
+    t.put(kw, "dt_s", "dt_s")
+    t.put(kw, "duration_s", "duration_s")
+    t.put(kw, "control_period_s", "control_period_s")
+    t.put(kw, "record_every", "record_every", read="integer")
+    sim = _build("sim", lambda: SimSettings(**kw))
     t.done()
     return sim
 
@@ -503,7 +523,15 @@ def scenario_and_spec_from_mapping(
     """Build and validate a scenario and its optional ``[montecarlo]`` spec."""
     top = _Table(data, "")
     top.string("kind", "ep-braking", ("ep-braking",))
-    name = top.string("name", "scenario")
+    if not top.has("name"):
+        raise ScenarioError(
+            "name",
+            None,
+            "a scenario name: the one key every scenario file must give (every other key "
+            "has a default: the config dataclasses of railpilot.scenario.model; the keys "
+            "are listed at the top of railpilot/scenario/loader.py)",
+        )
+    name = top.string("name", "")
     train = _train(top.table("train"))
     line = _line(top.table("line"))
     brake = _brake(top.table("brake"))

@@ -7,14 +7,14 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.control.registry import CONTROLLERS as CONTROLLER_REGISTRY
 from railpilot.errors import ConfigError
 from railpilot.sim.disturbance import Disturbance
 from railpilot.sim.realism import Realism
-from railpilot.sim.reference import BrakingCurve, smooth_stop
-from railpilot.units import kmh_to_mps
+from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
 from railpilot.vehicle.line import Line
 from railpilot.vehicle.train import Train
 
@@ -85,12 +85,15 @@ class SimSettings:
 
     dt_s: float = 0.01
     duration_s: float = 70.0
-    control_period_s: float = 0.01
+    #: None (the default) = every step, ``dt_s``
+    control_period_s: float = None  # type: ignore[assignment]
     record_every: int = 1
 
     def __post_init__(self) -> None:
         if not (np.isfinite(self.dt_s) and 0 < self.dt_s <= 0.1):
             raise ConfigError("sim.dt_s", self.dt_s, "a step in (0, 0.1] s")
+        if self.control_period_s is None:
+            object.__setattr__(self, "control_period_s", self.dt_s)
         if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 3600):
             raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 3600] s")
         ratio = self.control_period_s / self.dt_s
@@ -112,17 +115,51 @@ class SimSettings:
         return round(self.control_period_s / self.dt_s)
 
 
-def paper000_reference(start_m: float = 20_000.0) -> BrakingCurve:
-    """Paper 000's non-linear target curve from 72 km/h (our shape; see docs)."""
-    return smooth_stop(
-        kmh_to_mps(72.0),
-        decel_mps2=0.5,
-        jerk_mps3=0.5,
-        final_decel_mps2=0.3,
-        final_phase_speed_mps=2.0,
-        start_m=start_m,
-        coast_s=2.0,
-    )
+@dataclass(frozen=True)
+class SmoothStopSpec:
+    """Parameters of :func:`~railpilot.sim.reference.smooth_stop`; the defaults are paper
+    000's non-linear target curve from 72 km/h (our shape; see docs), braking at the 20 km
+    point after a 2 s coast. ``[reference] shape = "smooth"`` in a file."""
+
+    v0_mps: float = 20.0
+    decel_mps2: float = 0.5
+    jerk_mps3: float = 0.5
+    final_decel_mps2: float = 0.3
+    final_phase_speed_mps: float = 2.0
+    start_m: float = 20_000.0
+    coast_s: float = 2.0
+    ease_out: bool = False
+
+    def build(self) -> BrakingCurve:
+        return smooth_stop(
+            self.v0_mps,
+            self.decel_mps2,
+            self.jerk_mps3,
+            self.final_decel_mps2,
+            self.final_phase_speed_mps,
+            self.start_m,
+            coast_s=self.coast_s,
+            ease_out=self.ease_out,
+        )
+
+
+@dataclass(frozen=True)
+class ConstantDecelSpec:
+    """Parameters of :func:`~railpilot.sim.reference.constant_deceleration` (paper 002):
+    ``decel_mps2`` is required. ``[reference] shape = "constant"`` in a file."""
+
+    decel_mps2: float
+    v0_mps: float = 20.0
+    start_m: float = 0.0
+    coast_s: float = 0.0
+
+    def build(self) -> BrakingCurve:
+        return constant_deceleration(self.v0_mps, self.decel_mps2, self.start_m, self.coast_s)
+
+
+def paper000_reference(start_m: float = SmoothStopSpec.start_m) -> BrakingCurve:
+    """Paper 000's non-linear target curve from 72 km/h (:class:`SmoothStopSpec`)."""
+    return SmoothStopSpec(start_m=start_m).build()
 
 
 @dataclass(frozen=True)
@@ -132,7 +169,7 @@ class Scenario:
     name: str = "scenario"
     train: Train = field(default_factory=Train)
     line: Line = field(default_factory=Line)
-    brake: EPBrake | LagDelayBrake = field(default_factory=EPBrake)
+    brake: EPBrake | LagDelayBrake | BrakePipeBrake = field(default_factory=EPBrake)
     reference: BrakingCurve = field(default_factory=paper000_reference)
     disturbance: Disturbance = field(default_factory=Disturbance)
     ato: ATOModel = field(default_factory=ATOModel)

@@ -24,7 +24,7 @@ import sys
 from collections.abc import Callable, Iterator
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field, replace
-from typing import Any, TypeVar, cast
+from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
 from numba import njit
@@ -33,15 +33,17 @@ from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.registry import brake_entry_of
 from railpilot.control.user import Binding, bind
 from railpilot.errors import ConfigError
-from railpilot.scenario.model import Scenario
-from railpilot.scenario.montecarlo import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.sim import engine
 from railpilot.sim.inputs import ato_brake_model, reference_inputs, run_inputs
 from railpilot.sim.layout import ReferenceIn, RunInputs, batch_row, stack_runs
 from railpilot.sim.run import metrics_dict, resolve_controller
+from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.units import kmh_to_mps, tonne_to_kg
 
 T = TypeVar("T")
+
+if TYPE_CHECKING:  # the simulator never imports the scenario package at run time
+    from railpilot.scenario.model import Scenario
 
 
 def _with(obj: T, **changes: Any) -> T:
@@ -61,7 +63,7 @@ def _delay(s: Scenario, value: float) -> Scenario:
     if isinstance(s.brake, EPBrake):
         # the EP brake's delay line works in whole steps: sample at the step's resolution
         value = round(value / s.sim.dt_s) * s.sim.dt_s
-    return replace(s, brake=replace(s.brake, delay_s=value))
+    return _brake_field("delay_s")(s, value)
 
 
 def _brake_field(name: str) -> Callable[[Scenario, float], Scenario]:
@@ -175,8 +177,20 @@ def run_batch_kernel(
         engine.run_kernel(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
 
 
-#: :func:`run_batch_kernel` never written to Numba's on-disk cache (a user's own step)
-run_batch_kernel_uncached = njit(nogil=True, cache=False)(run_batch_kernel.py_func)
+@njit(nogil=True, cache=False)
+def run_batch_kernel_uncached(
+    batch: RunInputs,
+    ctrl_step: Any,
+    brake_step: Any,
+    metrics: np.ndarray,
+    start: int,
+    stop: int,
+) -> None:
+    """:func:`run_batch_kernel` for a user's own step: neither it nor the loop it calls is
+    written to Numba's on-disk cache (which could not find the user's module again)."""
+    empty = np.zeros((0, engine.N_CHANNELS))
+    for i in range(start, stop):
+        engine.run_kernel_uncached(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
 
 
 def run_batch(

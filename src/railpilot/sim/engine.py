@@ -61,6 +61,8 @@ from railpilot.sim.layout import (
     T_X0,
     RunInputs,
 )
+from railpilot.units import G_MPS2, KMH_PER_MPS
+from railpilot.vehicle.resistance import davis_specific_resistance
 
 # metrics
 (
@@ -83,7 +85,7 @@ from railpilot.sim.layout import (
 N_METRICS = 15
 N_CHANNELS = 12
 
-G = 9.8
+G = G_MPS2  # the one value of g (units.py)
 
 
 @njit(cache=True)
@@ -222,10 +224,10 @@ def run_kernel(
                 v_meas += speed_noise[k // control_every]
             if real[R_SPEED_RES] > 0.0:
                 v_meas = np.round(v_meas / real[R_SPEED_RES]) * real[R_SPEED_RES]
-            v_kmh_m = abs(v_meas) * 3.6
+            v_kmh_m = abs(v_meas) * KMH_PER_MPS
             # the ATO's own resistance model, as a deceleration [m/s^2]
             r_model = (
-                (ato[A_A0] + ato[A_A1] * v_kmh_m + ato[A_A2] * v_kmh_m * v_kmh_m)
+                davis_specific_resistance(v_kmh_m, ato[A_A0], ato[A_A1], ato[A_A2])
                 * G
                 / 1000.0
                 * ato[A_MASS]
@@ -265,12 +267,10 @@ def run_kernel(
                 brake_n = e_n + air_n
                 sliding = True
                 slide_t += dt
-            v_kmh = v * 3.6
+            v_kmh = v * KMH_PER_MPS
             resist = (
                 (
-                    train[T_A0]
-                    + train[T_A1] * v_kmh
-                    + train[T_A2] * v_kmh * v_kmh
+                    davis_specific_resistance(v_kmh, train[T_A0], train[T_A1], train[T_A2])
                     + _step_lookup(line_edges, line_values, x)
                 )
                 * mass

@@ -7,11 +7,12 @@ The controller's part comes from its :class:`~railpilot.control.user.Binding`.
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 import numpy as np
 
 from railpilot.brakes.base import PackContext
 from railpilot.control.user import Binding
-from railpilot.scenario.model import Scenario
 from railpilot.sim.layout import (
     A_A0,
     A_A1,
@@ -38,6 +39,9 @@ from railpilot.sim.layout import (
 )
 from railpilot.sim.reference import BrakingCurve
 from railpilot.units import kmh_to_mps
+
+if TYPE_CHECKING:  # the simulator never imports the scenario package at run time
+    from railpilot.scenario.model import Scenario
 
 
 def ato_brake_model(scenario: Scenario) -> tuple[float, float]:

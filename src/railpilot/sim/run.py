@@ -9,7 +9,7 @@ recorder; railpilot.sim.batch runs the same description for many runs.
 from __future__ import annotations
 
 import inspect
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -18,7 +18,6 @@ from railpilot.control.base import Controller
 from railpilot.control.registry import controller_entry
 from railpilot.control.user import Binding, bind, is_user_spec, load_controller
 from railpilot.errors import ConfigError
-from railpilot.scenario.model import Scenario
 from railpilot.sim import engine
 from railpilot.sim.inputs import distance_table, run_inputs, tuning_model
 from railpilot.sim.layout import RunInputs
@@ -33,6 +32,9 @@ __all__ = [
     "simulate",
     "tuning_model",
 ]
+
+if TYPE_CHECKING:  # the simulator never imports the scenario package at run time
+    from railpilot.scenario.model import Scenario
 
 
 def default_controller_params(scenario: Scenario, name: str) -> dict[str, Any]:

@@ -2,18 +2,27 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
+from numba import njit
 
 from railpilot.units import G_MPS2, KMH_PER_MPS, Num
 
 
-def davis_specific_resistance(speed_kmh: Num, a0: float, a1: float, a2: float) -> Num:
+def _davis_specific_resistance(speed_kmh: Num, a0: float, a1: float, a2: float) -> Num:
     """Specific basic resistance ``w = a0 + a1 v + a2 v^2`` [N/kN], v in [km/h].
 
     Paper 000 eq. 6 and paper 003 eq. 28 (``A + B v + C v^2``). Resistance always
-    opposes motion; for ``v >= 0`` this is the formula as printed.
+    opposes motion; for ``v >= 0`` this is the formula as printed. Compiled, so the
+    simulators' loops call this one formula too (scalars or arrays).
     """
     return a0 + a1 * speed_kmh + a2 * speed_kmh * speed_kmh
+
+
+#: :func:`_davis_specific_resistance`, compiled (one formula for Python and the kernels)
+davis_specific_resistance: Callable[..., Any] = njit(cache=True)(_davis_specific_resistance)
 
 
 def davis_resistance_n(speed_mps: Num, mass_kg: float, a0: float, a1: float, a2: float) -> Num:
