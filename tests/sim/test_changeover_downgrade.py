@@ -23,8 +23,13 @@ from railpilot.vehicle.line import Line, Segment
 def downgrade_scenario() -> Scenario:
     base = Scenario(name="paper000-downgrade-at-the-stop")
     stop = base.reference.stop_m
+    # a point-like train (1 cm) feels the grade at once: the sudden push this brake test
+    # needs (a 140 m train's length-averaged grade force ramps in over 140 m, and the
+    # controllers follow it without the speed coming back above the changeover)
     return dataclasses.replace(
-        base, line=Line(gradients=(Segment(stop - 4.0, stop + 50.0, -60.0),))
+        base,
+        train=dataclasses.replace(base.train, length_m=0.01),
+        line=Line(gradients=(Segment(stop - 4.0, stop + 50.0, -60.0),)),
     )
 
 

@@ -186,14 +186,14 @@ COAST_CASES = [
     # (line, disturbance, extra specific resistance [N/kN], push [N])
     pytest.param(Line(), Disturbance(), 0.0, 0.0, id="level"),
     pytest.param(
-        Line(gradients=(Segment(-10.0, 5000.0, 10.0),)),
+        Line(gradients=(Segment(-1000.0, 5000.0, 10.0),)),  # under the whole train
         Disturbance(),
         10.0,
         0.0,
         id="10-permille-uphill",
     ),
     pytest.param(
-        Line(curves=(Segment(-10.0, 5000.0, 300.0),)), Disturbance(), 2.0, 0.0, id="300-m-curve"
+        Line(curves=(Segment(-1000.0, 5000.0, 300.0),)), Disturbance(), 2.0, 0.0, id="300-m-curve"
     ),
     pytest.param(Line(), Disturbance(constant_n=-30e3), 0.0, -30e3, id="head-wind"),
 ]

@@ -18,6 +18,7 @@ from .base import BrakeModel, BrakeStep
 from .brake_pipe import BrakePipeBrake, brake_pipe_ato_step
 from .ep_blend import EPBrake, ep_ato_step
 from .lag_delay_brake import LagDelayBrake, lag_delay_ato_step
+from .locomotive_drive import LocomotiveDrive, locomotive_drive_ato_step
 
 
 @dataclass(frozen=True)
@@ -35,6 +36,7 @@ BRAKES: dict[str, BrakeEntry] = {
         BrakeEntry("ep-blended", EPBrake, ep_ato_step),
         BrakeEntry("lag-delay", LagDelayBrake, lag_delay_ato_step),
         BrakeEntry("brake-pipe", BrakePipeBrake, brake_pipe_ato_step),
+        BrakeEntry("locomotive-drive", LocomotiveDrive, locomotive_drive_ato_step),
     )
 }
 

@@ -26,13 +26,18 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              model = "brake-pipe" (heavy haul): position = "G" | "P", application_time_s,
              release_time_s, application_wave_mps, release_wave_mps, n_segments,
              max_decel_mps2, reaction_s (docs/heavy-haul-brake.md)
+             model = "locomotive-drive" (an HXD1-class locomotive's traction and
+             regeneration with the brake-pipe air brake): traction_lag_s, regen_enabled,
+             [brake.air] the brake-pipe keys (docs/locomotive-drive.md)
     [reference]  shape = "smooth" | "constant", start_km, v0_kmh, decel_mps2,
              jerk_mps3, final_decel_mps2, final_phase_speed_kmh,
              coast_s, ease_out
+             shape = "drive" (a whole run): start_km, stop_km, cruise_kmh, accel_mps2,
+             decel_mps2, v0_kmh; the line's speed limits apply
     [disturbance]  constant_kn, random_std_kn, random_hold_s, target_fraction, seed,
              regions = [{start_km, end_km, force_kn | accel_mps2}]
     [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s,
-             reference = "time" | "distance"
+             reference = "time" | "distance", gradient_feedforward
     [controller]  name = "pid" | "smarc" | "qsmc" | "module:Name" (your own,
              control/user.py); [controller.NAME] a built-in's parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
@@ -55,6 +60,7 @@ import numpy as np
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
+from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.brakes.registry import BRAKES
 from railpilot.errors import ConfigError, ScenarioError
 from railpilot.scenario.model import (
@@ -62,12 +68,14 @@ from railpilot.scenario.model import (
     ATOModel,
     ConstantDecelSpec,
     ControllerSpec,
+    DriveSpec,
     Scenario,
     SimSettings,
     SmoothStopSpec,
 )
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.disturbance import Disturbance, Region
+from railpilot.sim.drive_profile import DriveProfile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve
 from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, mps_to_kmh, tonne_to_kg
@@ -325,24 +333,23 @@ def _line(t: _Table) -> Line:
     return line
 
 
-def _brake(t: _Table) -> EPBrake | LagDelayBrake | BrakePipeBrake:
+def _brake(t: _Table) -> EPBrake | LagDelayBrake | BrakePipeBrake | LocomotiveDrive:
     model = t.string("model", EPBrake.name, tuple(BRAKES))
     kw: dict[str, Any] = {}
     if model == BrakePipeBrake.name:
-        t.put(kw, "position", "position", read="string")
-        for name in (
-            "application_time_s",
-            "release_time_s",
-            "application_wave_mps",
-            "release_wave_mps",
-            "max_decel_mps2",
-            "reaction_s",
-        ):
-            t.put(kw, name, name)
-        t.put(kw, "n_segments", "n_segments", read="integer")
-        bp = _build("brake", lambda: BrakePipeBrake(**kw))
+        bp = _build("brake", lambda: BrakePipeBrake(**_brake_pipe_keys(t)))
         t.done()
         return bp
+    if model == LocomotiveDrive.name:
+        t.put(kw, "traction_lag_s", "traction_lag_s")
+        t.put(kw, "regen_enabled", "regen_enabled", read="flag")
+        if t.has("air"):
+            air = t.table("air")
+            kw["air"] = _build("brake.air", lambda: BrakePipeBrake(**_brake_pipe_keys(air)))
+            air.done()
+        drive = _build("brake", lambda: LocomotiveDrive(**kw))
+        t.done()
+        return drive
     if model == LagDelayBrake.name:
         t.put(kw, "lag_s", "lag_s")
         t.put(kw, "delay_s", "delay_s")
@@ -365,10 +372,38 @@ def _brake(t: _Table) -> EPBrake | LagDelayBrake | BrakePipeBrake:
     return brake
 
 
-def _reference(t: _Table) -> BrakingCurve:
-    shape = t.string("shape", "smooth", ("smooth", "constant"))
+def _brake_pipe_keys(t: _Table) -> dict[str, Any]:
+    kw: dict[str, Any] = {}
+    t.put(kw, "position", "position", read="string")
+    for name in (
+        "application_time_s",
+        "release_time_s",
+        "application_wave_mps",
+        "release_wave_mps",
+        "max_decel_mps2",
+        "reaction_s",
+    ):
+        t.put(kw, name, name)
+    t.put(kw, "n_segments", "n_segments", read="integer")
+    return kw
+
+
+def _reference(t: _Table, line: Line, train: Train) -> BrakingCurve | DriveProfile:
+    shape = t.string("shape", "smooth", ("smooth", "constant", "drive"))
     kw: dict[str, Any] = {}
     t.put(kw, "start_km", "start_m", km_post_to_m)
+    if shape == "drive":
+        t.put(kw, "stop_km", "stop_m", km_post_to_m)
+        if "stop_m" not in kw:
+            t.number("stop_km")  # required for this shape: raises naming the key
+        t.put(kw, "cruise_kmh", "cruise_mps", kmh_to_mps)
+        t.put(kw, "accel_mps2", "accel_mps2")
+        t.put(kw, "decel_mps2", "decel_mps2")
+        t.put(kw, "v0_kmh", "v_start_mps", kmh_to_mps)
+        drive = _build("reference", lambda: DriveSpec(**kw))
+        profile = _build("reference", lambda: drive.build(line, train))
+        t.done()
+        return profile
     t.put(kw, "v0_kmh", "v0_mps", kmh_to_mps)
     t.put(kw, "coast_s", "coast_s")
     t.put(kw, "decel_mps2", "decel_mps2")
@@ -479,6 +514,7 @@ def _ato(t: _Table) -> ATOModel:
     t.put(kw, "brake_delay_s", "brake_delay_s")
     t.put(kw, "brake_lag_s", "brake_lag_s")
     t.put(kw, "reference", "reference", read="string")
+    t.put(kw, "gradient_feedforward", "gradient_feedforward", read="flag")
     davis = t.numbers("davis", 3)
     if davis is not None:
         kw["davis"] = davis
@@ -535,7 +571,7 @@ def scenario_and_spec_from_mapping(
     train = _train(top.table("train"))
     line = _line(top.table("line"))
     brake = _brake(top.table("brake"))
-    reference = _reference(top.table("reference"))
+    reference = _reference(top.table("reference"), line, train)
     disturbance = _disturbance(top.table("disturbance"), train.effective_mass_kg)
     ato = _ato(top.table("ato"))
     controller = _controller(top.table("controller"))

@@ -10,11 +10,14 @@ import numpy as np
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
+from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.control.registry import CONTROLLERS as CONTROLLER_REGISTRY
 from railpilot.errors import ConfigError
 from railpilot.sim.disturbance import Disturbance
+from railpilot.sim.drive_profile import DriveProfile, drive_profile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
+from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line
 from railpilot.vehicle.train import Train
 
@@ -42,6 +45,10 @@ class ATOModel:
         function of time since the braking point. ``"distance"``: the ATO looks the curve
         up at the measured position (distance to go), as production ATOs do, so a train
         that falls behind is not chased by a reference running away from it.
+    gradient_feedforward
+        The ATO adds the line's gradient and curve resistance (averaged over the train's
+        length, at the measured position) to its resistance feed-forward, as an ATO that
+        knows the line's profile does. Off in the papers' world (they model none).
     """
 
     mass_kg: float | None = None
@@ -49,6 +56,7 @@ class ATOModel:
     brake_delay_s: float | None = None
     brake_lag_s: float | None = None
     reference: str = "time"
+    gradient_feedforward: bool = False
 
     def __post_init__(self) -> None:
         if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
@@ -94,8 +102,9 @@ class SimSettings:
             raise ConfigError("sim.dt_s", self.dt_s, "a step in (0, 0.1] s")
         if self.control_period_s is None:
             object.__setattr__(self, "control_period_s", self.dt_s)
-        if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 3600):
-            raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 3600] s")
+        # up to a day: a heavy-haul run over a whole line takes hours
+        if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 86_400):
+            raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 86400] s")
         ratio = self.control_period_s / self.dt_s
         if not (np.isfinite(ratio) and ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
             raise ConfigError(
@@ -157,6 +166,38 @@ class ConstantDecelSpec:
         return constant_deceleration(self.v0_mps, self.decel_mps2, self.start_m, self.coast_s)
 
 
+@dataclass(frozen=True)
+class DriveSpec:
+    """A whole run: start (from rest by default), accelerate, cruise, obey the line's speed
+    limits (held until the tail has left them), brake to a stop at ``stop_m``
+    (:func:`~railpilot.sim.drive_profile.drive_profile`). ``[reference] shape = "drive"``
+    in a file; the ATO then tracks it by distance. ``stop_m`` is required."""
+
+    stop_m: float
+    start_m: float = 0.0
+    cruise_mps: float = kmh_to_mps(80.0)
+    accel_mps2: float = 0.05
+    decel_mps2: float = 0.1
+    v_start_mps: float = 0.0
+
+    def build(self, line: Line, train: Train) -> DriveProfile:
+        limits = [
+            (seg.start_m, seg.end_m, seg.value)
+            for seg in line.speed_limits
+            if seg.end_m > self.start_m and seg.start_m < self.stop_m
+        ]
+        return drive_profile(
+            self.start_m,
+            self.stop_m,
+            self.cruise_mps,
+            self.accel_mps2,
+            self.decel_mps2,
+            limits=limits,
+            v_start_mps=self.v_start_mps,
+            train_length_m=train.length_m,
+        )
+
+
 def paper000_reference(start_m: float = SmoothStopSpec.start_m) -> BrakingCurve:
     """Paper 000's non-linear target curve from 72 km/h (:class:`SmoothStopSpec`)."""
     return SmoothStopSpec(start_m=start_m).build()
@@ -169,8 +210,10 @@ class Scenario:
     name: str = "scenario"
     train: Train = field(default_factory=Train)
     line: Line = field(default_factory=Line)
-    brake: EPBrake | LagDelayBrake | BrakePipeBrake = field(default_factory=EPBrake)
-    reference: BrakingCurve = field(default_factory=paper000_reference)
+    brake: EPBrake | LagDelayBrake | BrakePipeBrake | LocomotiveDrive = field(
+        default_factory=EPBrake
+    )
+    reference: BrakingCurve | DriveProfile = field(default_factory=paper000_reference)
     disturbance: Disturbance = field(default_factory=Disturbance)
     ato: ATOModel = field(default_factory=ATOModel)
     controller: ControllerSpec = field(default_factory=ControllerSpec)

@@ -177,6 +177,9 @@ def run_batch_kernel(
         engine.run_kernel(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
 
 
+engine.keep_going_if_the_cache_cannot_save(run_batch_kernel)
+
+
 @njit(nogil=True, cache=False)
 def run_batch_kernel_uncached(
     batch: RunInputs,

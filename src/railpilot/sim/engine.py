@@ -27,6 +27,7 @@ Per step ``k`` (``t = k dt``):
 
 from __future__ import annotations
 
+import contextlib
 from typing import Any
 
 import numpy as np
@@ -36,6 +37,7 @@ from railpilot.sim.layout import (
     A_A0,
     A_A1,
     A_A2,
+    A_GRADE_FF,
     A_MASS,
     A_MEFF_LW,
     A_STOP_M,
@@ -55,6 +57,7 @@ from railpilot.sim.layout import (
     T_A1,
     T_A2,
     T_BRAKE_GAIN,
+    T_LENGTH,
     T_MASS,
     T_MEFF,
     T_V0,
@@ -62,6 +65,7 @@ from railpilot.sim.layout import (
     RunInputs,
 )
 from railpilot.units import G_MPS2, KMH_PER_MPS
+from railpilot.vehicle.profile import mean_specific_resistance
 from railpilot.vehicle.resistance import davis_specific_resistance
 
 # metrics
@@ -81,19 +85,13 @@ from railpilot.vehicle.resistance import davis_specific_resistance
     M_STOPPED,
     M_ODO_ERR,
     M_SLIDE_T,
-) = range(15)
-N_METRICS = 15
+    M_E_TRACTION,
+    M_MAX_SPEED,
+) = range(17)
+N_METRICS = 17
 N_CHANNELS = 12
 
 G = G_MPS2  # the one value of g (units.py)
-
-
-@njit(cache=True)
-def _step_lookup(edges: np.ndarray, values: np.ndarray, x: float) -> float:
-    i = np.searchsorted(edges, x, side="right") - 1
-    if i < 0 or i >= values.shape[0]:
-        return 0.0
-    return values[i]
 
 
 @njit(cache=True)
@@ -139,6 +137,8 @@ def run_kernel(
     brake_p = inp.brake.p
     line_edges = inp.line.edges
     line_values = inp.line.values
+    line_cumulative = inp.line.cumulative
+    length_m = train[T_LENGTH]
     dist = inp.disturbance
     ref_x = inp.reference.x
     ref_v = inp.reference.v
@@ -175,6 +175,11 @@ def run_kernel(
     max_xerr = 0.0
     e_elec = 0.0
     e_fric = 0.0
+    e_trac = 0.0
+    v_max = v
+    # a train that starts at rest is held there until its traction overcomes resistance;
+    # only a train that has moved can come to its final stop
+    has_moved = v > 0.0
     slide_t = 0.0
     n_rec = record.shape[0]
     ctrl_dt = dt * control_every
@@ -226,13 +231,14 @@ def run_kernel(
                 v_meas = np.round(v_meas / real[R_SPEED_RES]) * real[R_SPEED_RES]
             v_kmh_m = abs(v_meas) * KMH_PER_MPS
             # the ATO's own resistance model, as a deceleration [m/s^2]
-            r_model = (
-                davis_specific_resistance(v_kmh_m, ato[A_A0], ato[A_A1], ato[A_A2])
-                * G
-                / 1000.0
-                * ato[A_MASS]
-                / ato[A_MEFF_LW]
-            )
+            w_model = davis_specific_resistance(v_kmh_m, ato[A_A0], ato[A_A1], ato[A_A2])
+            if ato[A_GRADE_FF] > 0.0:
+                # an ATO that knows the line adds its gradients and curves where it
+                # believes the train is
+                w_model += mean_specific_resistance(
+                    line_edges, line_cumulative, line_values, x_odo, length_m, 1.0
+                )
+            r_model = w_model * G / 1000.0 * ato[A_MASS] / ato[A_MEFF_LW]
             u = ctrl_step(
                 ctrl_p,
                 ctrl_s,
@@ -271,7 +277,9 @@ def run_kernel(
             resist = (
                 (
                     davis_specific_resistance(v_kmh, train[T_A0], train[T_A1], train[T_A2])
-                    + _step_lookup(line_edges, line_values, x)
+                    + mean_specific_resistance(
+                        line_edges, line_cumulative, line_values, x, length_m, 1.0
+                    )
                 )
                 * mass
                 * G
@@ -289,19 +297,30 @@ def run_kernel(
             a = (outside - brake_n - resist) / m_eff
             v_next = v + a * dt
             x_before = x
-            if v_next <= 0.0 and a < 0.0:
+            if v_next <= 0.0 and a < 0.0 and not has_moved:
+                # at rest and nothing pulls hard enough yet: held (brakes, adhesion)
+                a = 0.0
+            elif v_next <= 0.0 and a < 0.0:
                 h = v / (-a)
                 x += v * h / 2.0
-                e_elec += e_n * v * h / 2.0
+                e_elec += max(e_n, 0.0) * v * h / 2.0
+                e_trac += max(-e_n, 0.0) * v * h / 2.0
                 e_fric += air_n * v * h / 2.0
                 v = 0.0
                 moving = False
                 stop_t = t + h
             else:
                 x += (v + v_next) * dt / 2.0
-                e_elec += e_n * (v + v_next) * dt / 2.0
+                # electric braking (regeneration) and traction apart: the actuator's
+                # electric force is negative when it pulls
+                e_elec += max(e_n, 0.0) * (v + v_next) * dt / 2.0
+                e_trac += max(-e_n, 0.0) * (v + v_next) * dt / 2.0
                 e_fric += air_n * (v + v_next) * dt / 2.0
                 v = v_next
+                if v > 0.0:
+                    has_moved = True
+                if v > v_max:
+                    v_max = v
             # odometry: wheel revolutions times the (mis-)calibrated circumference
             travelled = x - x_before
             if sliding:
@@ -352,7 +371,31 @@ def run_kernel(
     metrics[M_STOPPED] = 0.0 if moving else 1.0
     metrics[M_ODO_ERR] = x_odo - x
     metrics[M_SLIDE_T] = slide_t
+    metrics[M_E_TRACTION] = e_trac
+    metrics[M_MAX_SPEED] = v_max
 
+
+def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:
+    """Let a compiled loop run when Numba cannot write its cache index.
+
+    The loop takes compiled functions as arguments (the controller's and the brake's
+    steps). Numba stores such specialisations in its on-disk cache, but it cannot write
+    the index again once it has read entries of an earlier process (the function types it
+    unpickled refer to objects that are gone: ``ReferenceError``). The code compiled in
+    this process is correct either way, so the save is skipped and the process runs on
+    (that specialisation is compiled again by the next process that needs it).
+    """
+    cache = dispatcher._cache
+    save = cache.save_overload
+
+    def save_overload(sig: Any, data: Any) -> None:
+        with contextlib.suppress(ReferenceError):
+            save(sig, data)
+
+    cache.save_overload = save_overload
+
+
+keep_going_if_the_cache_cannot_save(run_kernel)
 
 #: The same loop, never written to Numba's on-disk cache: for a user's own compiled step,
 #: whose module the cache could not find again in another process (it is compiled once

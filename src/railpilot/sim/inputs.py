@@ -13,10 +13,12 @@ import numpy as np
 
 from railpilot.brakes.base import PackContext
 from railpilot.control.user import Binding
+from railpilot.sim.drive_profile import DriveProfile
 from railpilot.sim.layout import (
     A_A0,
     A_A1,
     A_A2,
+    A_GRADE_FF,
     A_MASS,
     A_MEFF_LW,
     A_STOP_M,
@@ -39,6 +41,7 @@ from railpilot.sim.layout import (
 )
 from railpilot.sim.reference import BrakingCurve
 from railpilot.units import kmh_to_mps
+from railpilot.vehicle.profile import elevation_table
 
 if TYPE_CHECKING:  # the simulator never imports the scenario package at run time
     from railpilot.scenario.model import Scenario
@@ -68,7 +71,9 @@ def tuning_model(scenario: Scenario) -> tuple[float, float]:
     return delay + scenario.sim.control_period_s / 2.0, lag
 
 
-def feed_forward_acceleration(ref: BrakingCurve, t: np.ndarray, lead_s: float) -> np.ndarray:
+def feed_forward_acceleration(
+    ref: BrakingCurve | DriveProfile, t: np.ndarray, lead_s: float
+) -> np.ndarray:
     """Reference acceleration [m/s^2] to command at ``t`` for a brake ``lead_s`` slow.
 
     ``a_ref(t + lead)``, except over the last ``lead`` before the stop: there the
@@ -83,7 +88,7 @@ def feed_forward_acceleration(ref: BrakingCurve, t: np.ndarray, lead_s: float) -
     return np.where(holding, np.minimum(a_ahead, a_final), a_ahead)
 
 
-def distance_table(ref: BrakingCurve, dt: float, lead_s: float) -> np.ndarray:
+def distance_table(ref: BrakingCurve | DriveProfile, dt: float, lead_s: float) -> np.ndarray:
     """The braking curve by position: ``[x, v(x), fed-forward a(x)]`` rows, x increasing.
 
     For a distance-based reference the ATO looks these up at the measured position.
@@ -122,14 +127,15 @@ def train_inputs(scenario: Scenario) -> TrainIn:
                 ref.start_m,
                 v0,
                 scenario.brake_gain,
+                train.length_m,
             ]
         )
     )
 
 
 def line_inputs(scenario: Scenario) -> LineIn:
-    edges, values = scenario.line.resistance_profile()
-    return LineIn(edges, values)
+    table = elevation_table(scenario.line)
+    return LineIn(table.edges_m, table.values_n_per_kn, table.cumulative)
 
 
 def ato_inputs(scenario: Scenario) -> AtoIn:
@@ -145,6 +151,10 @@ def ato_inputs(scenario: Scenario) -> AtoIn:
     p[A_UMAX] = 0.0
     p[A_STOP_M] = scenario.reference.stop_m
     p[A_V_CO] = kmh_to_mps(scenario.changeover_kmh)
+    # an actuator with traction lets the ATO drive, up to its starting effort
+    traction = getattr(scenario.brake, "max_traction_accel_mps2", None)
+    p[A_UMAX] = 0.0 if traction is None else float(traction(train))
+    p[A_GRADE_FF] = 1.0 if ato.gradient_feedforward else 0.0
     return AtoIn(p)
 
 

@@ -25,12 +25,14 @@ from numba import njit
 # --- layouts of the ``p`` vectors --------------------------------------------------------
 
 # train: the plant. T_BRAKE_GAIN: the brake's true effort relative to nominal (shoe
-# friction above or below what the brake manager assumes; the air path of an EP brake)
-T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0, T_BRAKE_GAIN = range(8)
-N_TRAIN = 8
-# ATO: the controllers' side's view of the train
-A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO = range(9)
-N_ATO = 9
+# friction above or below what the brake manager assumes; the air path of an EP brake);
+# T_LENGTH: the train's length [m], over which gradient and curve forces are averaged
+T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0, T_BRAKE_GAIN, T_LENGTH = range(9)
+N_TRAIN = 9
+# ATO: the controllers' side's view of the train. A_UMAX > 0: it may command traction;
+# A_GRADE_FF = 1: its resistance feed-forward includes the line's gradients and curves
+(A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO, A_GRADE_FF) = range(10)
+N_ATO = 10
 # realism (all 0 = the idealised papers' world)
 (R_SPEED_RES, R_WHEEL_SCALE, R_SLIDE_SLIP, R_ADHESION, R_SLIDE_RATIO, R_NOTCHES) = range(6)
 N_REAL = 6
@@ -56,10 +58,13 @@ class TrainIn(NamedTuple):
 
 
 class LineIn(NamedTuple):
-    """Gradient + curve resistance [N/kN] as a step function over position [m]."""
+    """Gradient + curve resistance [N/kN] as a step function over position [m]
+    (``values`` on ``[edges[i], edges[i+1])``) and its running integral at the edges
+    [N/kN m], for averages over the train's length (vehicle/profile.py)."""
 
     edges: np.ndarray
     values: np.ndarray
+    cumulative: np.ndarray
 
 
 class BrakeIn(NamedTuple):

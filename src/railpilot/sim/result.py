@@ -46,6 +46,14 @@ METRICS: dict[str, str] = {
     "energy_friction_j": "energy dissipated by the shoes [J]",
     "odometry_error_at_stop_m": "odometer position minus true position at the end [m]",
     "slide_time_s": "time the wheels slid (adhesion exceeded) [s]",
+    "energy_traction_j": "work done by traction at the wheel [J]",
+    "max_speed_mps": "highest speed of the run [m/s]",
+    "max_speed_kmh": "highest speed of the run [km/h]",
+    "running_time_s": "time to the stop (nan if the train did not stop) [s]",
+    "energy_traction_kwh": "traction energy drawn from the supply: wheel work / the traction "
+    "chain's efficiency (1 for an actuator without one) [kWh]",
+    "energy_regenerated_kwh": "electric braking energy returned to the supply: wheel work x "
+    "the regeneration efficiency (1 for an actuator without one) [kWh]",
 }
 
 

@@ -22,6 +22,7 @@ from railpilot.sim import engine
 from railpilot.sim.inputs import distance_table, run_inputs, tuning_model
 from railpilot.sim.layout import RunInputs
 from railpilot.sim.result import CHANNELS, SimResult
+from railpilot.units import mps_to_kmh
 
 __all__ = [
     "default_controller_params",
@@ -179,7 +180,25 @@ METRIC_INDEX: dict[str, int] = {
     "energy_friction_j": engine.M_E_FRIC,
     "odometry_error_at_stop_m": engine.M_ODO_ERR,
     "slide_time_s": engine.M_SLIDE_T,
+    "energy_traction_j": engine.M_E_TRACTION,
+    "max_speed_mps": engine.M_MAX_SPEED,
 }
+
+J_PER_KWH = 3.6e6
+
+
+def derived_metrics(metrics: dict[str, float], brake: Any) -> dict[str, float]:
+    """The metrics in the units a driver and a dispatcher read, with the actuator's
+    efficiencies (vehicle/traction.py: from the wheel to the supply and back)."""
+    locomotive = getattr(brake, "locomotive", None)
+    traction_eff = 1.0 if locomotive is None else locomotive.traction_efficiency
+    regen_eff = 1.0 if locomotive is None else locomotive.regen_efficiency
+    return {
+        "max_speed_kmh": mps_to_kmh(metrics["max_speed_mps"]),
+        "running_time_s": metrics["stop_time_s"],
+        "energy_traction_kwh": metrics["energy_traction_j"] / traction_eff / J_PER_KWH,
+        "energy_regenerated_kwh": metrics["energy_electric_j"] * regen_eff / J_PER_KWH,
+    }
 
 
 def metrics_dict(metrics: np.ndarray) -> dict[str, float]:
@@ -209,4 +228,6 @@ def simulate(scenario: Scenario, controller: Any = None) -> SimResult:
         "dt_s": scenario.sim.dt_s,
         "stopped": bool(metrics[engine.M_STOPPED]),
     }
-    return SimResult(series=series, metrics=metrics_dict(metrics), meta=meta)
+    named = metrics_dict(metrics)
+    named.update(derived_metrics(named, scenario.brake))
+    return SimResult(series=series, metrics=named, meta=meta)

@@ -16,8 +16,8 @@ Chinese traction rules' equivalent (converted) gradient ``i_j = i + w_r``.
 profile plus its running integral at every edge; :func:`mean_specific_resistance` (Numba,
 scalar, for the kernel) and :func:`length_averaged_resistance` (NumPy, vectorised) then give
 ``w_bar`` with two binary searches: O(log n) per call, whatever the train's length.
-The point model of ``Line.additional_resistance`` (and the kernel's ``_step_lookup``) is
-the case ``L = 0``.
+The point model of ``Line.additional_resistance`` is the case ``L = 0``; the simulator's
+loop (sim/engine.py) averages over the train's length.
 """
 
 from __future__ import annotations
