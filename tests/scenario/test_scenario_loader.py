@@ -288,3 +288,31 @@ def test_malformed_toml_is_a_scenario_error(tmp_path):
     with pytest.raises(ScenarioError, match="valid TOML") as info:
         load_scenario(path)
     assert str(path) in str(info.value)
+
+
+def test_a_brake_models_file_keys_are_its_config_fields():
+    # no per-model reader in the loader: a registered model's dataclass fields are its keys
+    # (issue 9: adding a brake touches its module and the registry only)
+    from railpilot.brakes.brake_pipe import BrakePipeBrake
+    from railpilot.brakes.locomotive_drive import LocomotiveDrive
+
+    pipe = scenario_from_mapping(
+        {"name": "t", "brake": {"model": "brake-pipe", "position": "P", "n_segments": 12}}
+    ).brake
+    assert pipe == BrakePipeBrake(position="P", n_segments=12)
+    drive = scenario_from_mapping(
+        {
+            "name": "t",
+            "brake": {
+                "model": "locomotive-drive",
+                "traction_lag_s": 2.0,
+                "air": {"max_decel_mps2": 0.4},
+            },
+        }
+    ).brake
+    assert drive == LocomotiveDrive(traction_lag_s=2.0, air=BrakePipeBrake(max_decel_mps2=0.4))
+    with pytest.raises(ScenarioError) as info:
+        scenario_from_mapping(
+            {"name": "t", "brake": {"model": "locomotive-drive", "air": {"n_segmnts": 3}}}
+        )
+    assert info.value.field == "brake.air.n_segmnts"

@@ -34,7 +34,7 @@ the fade rate -- never a cut. The phases (``PHASE_*``) are in ``state[S_PHASE]``
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar
+from typing import Any, ClassVar
 
 import numpy as np
 from numba import njit
@@ -42,7 +42,7 @@ from numba import njit
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.errors import ConfigError
-from railpilot.units import KMH_PER_MPS
+from railpilot.units import KMH_PER_MPS, kn_to_n
 
 (
     P_DELAY_N,
@@ -144,6 +144,11 @@ class EPBrake:
                 raise ConfigError(f"brake.{name}", value, f"a number in [0, {MAX_TIME_S:g}] s")
 
     name: ClassVar[str] = "ep-blended"
+    #: scenario-file keys written in other units or as one list (brakes/base.py)
+    FILE_KEYS: ClassVar[dict[str, tuple[str, Any]]] = {
+        "fade_rate_kn_per_s": ("fade_rate_n_per_s", kn_to_n)
+    }
+    FILE_LISTS: ClassVar[dict[str, tuple[str, ...]]] = {"beta": ("beta1", "beta2", "beta3")}
 
     @property
     def lead_s(self) -> tuple[float, float]:

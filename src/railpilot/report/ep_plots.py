@@ -18,10 +18,12 @@ COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green"}
 
 
 def _moving(result: SimResult) -> np.ndarray:
-    """Samples up to and including the stop."""
+    """Samples up to and including the stop (a run that starts at rest: its final stop)."""
     v = result["speed_mps"]
-    stopped = np.nonzero(v <= 0.0)[0]
-    end = stopped[0] + 1 if len(stopped) else len(v)
+    moved = np.nonzero(v > 0.0)[0]
+    start = moved[0] if len(moved) else 0
+    stopped = np.nonzero(v[start:] <= 0.0)[0]
+    end = start + stopped[0] + 1 if len(stopped) else len(v)
     return np.arange(end)
 
 
@@ -54,7 +56,8 @@ def speed_distance(results: Mapping[str, SimResult], changeover_mps: float) -> F
     ref_v = mps_to_kmh(first["ref_speed_mps"])
     for a in (ax, zoom):
         a.plot(ref_x, ref_v, "k--", lw=1, label="target curve" if a is ax else None)
-        a.axhline(float(mps_to_kmh(changeover_mps)), color="grey", lw=0.6, ls=":")
+        if changeover_mps > 0.0:  # a brake without an electric/air changeover has none
+            a.axhline(float(mps_to_kmh(changeover_mps)), color="grey", lw=0.6, ls=":")
         a.grid(alpha=0.3)
         a.set_xlabel("position relative to the stop point [m]")
     ax.set_ylabel("speed [km/h]")
@@ -63,7 +66,11 @@ def speed_distance(results: Mapping[str, SimResult], changeover_mps: float) -> F
     zoom.set_xlim(-25, 2)
     zoom.set_ylim(0, 12)
     zoom.axvline(0, color="k", lw=0.8)
-    zoom.set_title(f"Last 25 m (dotted: {_kmh_text(changeover_mps)} changeover)")
+    zoom.set_title(
+        f"Last 25 m (dotted: {_kmh_text(changeover_mps)} changeover)"
+        if changeover_mps > 0.0
+        else "Last 25 m"
+    )
     fig.tight_layout()
     return fig
 
@@ -120,13 +127,15 @@ def speed_error(results: Mapping[str, SimResult], changeover_mps: float) -> Figu
         ax.plot(r["time_s"][i], err, color=COLORS.get(name), label=name.upper())
         v = r["speed_mps"][i]
         below = np.nonzero(v <= changeover_mps)[0]
-        if len(below):
+        if changeover_mps > 0.0 and len(below):
             ax.axvline(r["time_s"][i][below[0]], color=COLORS.get(name), lw=0.7, ls=":")
     ax.axhline(0, color="k", lw=0.6)
     ax.set_xlabel("time [s]")
     ax.set_ylabel("speed error v - v_ref [m/s]")
     ax.set_title(
         f"Speed tracking error (dotted: train reaches the {_kmh_text(changeover_mps)} changeover)"
+        if changeover_mps > 0.0
+        else "Speed tracking error"
     )
     ax.legend()
     ax.grid(alpha=0.3)

@@ -49,8 +49,10 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
 
 from __future__ import annotations
 
+import dataclasses
 import re
 import tomllib
+import typing
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any, TypeVar
@@ -334,57 +336,55 @@ def _line(t: _Table) -> Line:
 
 
 def _brake(t: _Table) -> EPBrake | LagDelayBrake | BrakePipeBrake | LocomotiveDrive:
+    """``[brake]``: ``model`` picks the registered brake model; its keys are its config
+    dataclass's fields (brakes/base.py: ``FILE_KEYS`` and ``FILE_LISTS`` for keys the
+    file writes in other units or as one list), read without a line per model here."""
     model = t.string("model", EPBrake.name, tuple(BRAKES))
-    kw: dict[str, Any] = {}
-    if model == BrakePipeBrake.name:
-        bp = _build("brake", lambda: BrakePipeBrake(**_brake_pipe_keys(t)))
-        t.done()
-        return bp
-    if model == LocomotiveDrive.name:
-        t.put(kw, "traction_lag_s", "traction_lag_s")
-        t.put(kw, "regen_enabled", "regen_enabled", read="flag")
-        if t.has("air"):
-            air = t.table("air")
-            kw["air"] = _build("brake.air", lambda: BrakePipeBrake(**_brake_pipe_keys(air)))
-            air.done()
-        drive = _build("brake", lambda: LocomotiveDrive(**kw))
-        t.done()
-        return drive
-    if model == LagDelayBrake.name:
-        t.put(kw, "lag_s", "lag_s")
-        t.put(kw, "delay_s", "delay_s")
-        t.put(kw, "max_decel_mps2", "max_decel_mps2", gt=0)
-        ld = _build("brake", lambda: LagDelayBrake(**kw))
-        t.done()
-        return ld
-    for name in ("delay_s", "air_lag_s", "electric_lag_s", "jerk_limit_mps3"):
-        t.put(kw, name, name)
-    t.put(kw, "changeover_kmh", "changeover_kmh")
-    t.put(kw, "fade_rate_kn_per_s", "fade_rate_n_per_s", kn_to_n)
-    t.put(kw, "prenotice_s", "prenotice_s")
-    t.put(kw, "cutout_cars", "cutout_cars", read="integer")
-    t.put(kw, "cutout_time_s", "cutout_time_s")
-    beta = t.numbers("beta", 3)
-    if beta is not None:
-        kw["beta1"], kw["beta2"], kw["beta3"] = beta
-    brake = _build("brake", lambda: EPBrake(**kw))
+    cls = BRAKES[model].cls
+    brake = _build("brake", lambda: cls(**_config_keys(t, cls)))
     t.done()
     return brake
 
 
-def _brake_pipe_keys(t: _Table) -> dict[str, Any]:
+def _nested_config(t: _Table, cls: type) -> Any:
+    """A config dataclass read from its own sub-table (every key checked)."""
+    value = _build(t.path, lambda: cls(**_config_keys(t, cls)))
+    t.done()
+    return value
+
+
+def _config_keys(t: _Table, cls: type) -> dict[str, Any]:
+    """Keyword arguments of config dataclass ``cls`` from the keys ``t`` gives (only
+    those: the dataclass's defaults apply to the rest). A field that is itself a config
+    dataclass is read from a sub-table of its name."""
+    file_keys: dict[str, tuple[str, Callable[[float], Any]]] = getattr(cls, "FILE_KEYS", {})
+    file_lists: dict[str, tuple[str, ...]] = getattr(cls, "FILE_LISTS", {})
+    written_otherwise = {field for field, _ in file_keys.values()}
+    written_otherwise |= {field for fields in file_lists.values() for field in fields}
+    hints = typing.get_type_hints(cls)
     kw: dict[str, Any] = {}
-    t.put(kw, "position", "position", read="string")
-    for name in (
-        "application_time_s",
-        "release_time_s",
-        "application_wave_mps",
-        "release_wave_mps",
-        "max_decel_mps2",
-        "reaction_s",
-    ):
-        t.put(kw, name, name)
-    t.put(kw, "n_segments", "n_segments", read="integer")
+    for f in dataclasses.fields(cls):
+        if not f.init or f.name in written_otherwise:
+            continue
+        kind = hints[f.name]
+        if dataclasses.is_dataclass(kind) and isinstance(kind, type):
+            if t.has(f.name):
+                kw[f.name] = _nested_config(t.table(f.name), kind)
+            continue
+        if kind is bool:
+            t.put(kw, f.name, f.name, read="flag")
+        elif kind is int:
+            t.put(kw, f.name, f.name, read="integer")
+        elif kind is str or typing.get_origin(kind) is typing.Literal:
+            t.put(kw, f.name, f.name, read="string")
+        else:
+            t.put(kw, f.name, f.name)
+    for key, (field, convert) in file_keys.items():
+        t.put(kw, key, field, convert)
+    for key, fields in file_lists.items():
+        values = t.numbers(key, len(fields))
+        if values is not None:
+            kw.update(zip(fields, values, strict=True))
     return kw
 
 
