@@ -32,6 +32,7 @@ from numba import njit
 
 from railpilot.errors import ConfigError
 from railpilot.units import kmh_to_mps, kn_to_n, tonne_to_kg
+from railpilot.vehicle.train import _non_negative, _positive
 
 # --- the HXD1 (DJ4), CSR Zhuzhou / Siemens, Bo'Bo'+Bo'Bo' --------------------------------
 # Published figures: the class's Wikipedia page ("China Railways HXD1", infobox, and the
@@ -70,16 +71,6 @@ TRACTION_EFFICIENCY = 0.85
 #: backwards, less at the part loads of braking and with some of the returned energy taken by
 #: auxiliaries: 0.80.
 REGEN_EFFICIENCY = 0.80
-
-
-def _positive(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value > 0):
-        raise ConfigError(name, value, "a finite number > 0")
-
-
-def _non_negative(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value >= 0):
-        raise ConfigError(name, value, "a finite number >= 0")
 
 
 def _efficiency(name: str, value: float) -> None:
