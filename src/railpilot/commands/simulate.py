@@ -31,12 +31,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from railpilot.scenario.loader import load_scenario, read_toml
+    from railpilot.scenario.loader import read_toml, scenario_from_mapping
 
     data = read_toml(args.scenario)
     if data.get("kind") == "eddy-brake":
         return _run_eddy(args, data)
-    scenario = load_scenario(args.scenario)  # validates everything before running
+    scenario = scenario_from_mapping(data)  # validates everything before running
     from railpilot.sim.run import simulate
 
     result = simulate(scenario, args.controller)

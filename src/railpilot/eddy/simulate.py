@@ -21,7 +21,9 @@ Use ``record_every=1`` for metrics that must see every chopper ripple
 from __future__ import annotations
 
 import time
+from collections.abc import Mapping
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -44,6 +46,7 @@ from railpilot.eddy.coil import (
 from railpilot.eddy.table import TorqueTable, table_torque_nm
 from railpilot.eddy.train import TrainParams, train_step
 from railpilot.errors import ConfigError
+from railpilot.sim.result import SimResult
 from railpilot.units import mps_to_kmh
 
 KIND_OPEN_LOOP, KIND_PID, KIND_FUZZY, KIND_FUZZY_PI = range(4)
@@ -162,6 +165,20 @@ class EddyResult:
             "switch_on": self.switch_on,
             "command": self.command,
         }
+
+    def as_result(self, metrics: Mapping[str, float] | None = None) -> SimResult:
+        """The same kind of result as the stopping simulator's (railpilot.sim.result)."""
+        return SimResult(
+            series=dict(self.columns), metrics=dict(metrics or {}), meta=dict(self.metadata)
+        )
+
+    def to_csv(self, path: Path) -> Path:
+        """Write the time series as CSV (header = channel names), as :class:`SimResult`."""
+        return self.as_result().to_csv(path)
+
+    def to_parquet(self, path: Path) -> Path:
+        """Write the time series as Parquet, as :class:`SimResult`."""
+        return self.as_result().to_parquet(path)
 
     def to_pandas(self) -> Any:
         """The series as a ``pandas.DataFrame`` indexed by time (pandas imported lazily)."""

@@ -64,6 +64,7 @@ from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.brakes.registry import BRAKES
+from railpilot.eddy.scenario import EddyScenario
 from railpilot.errors import ConfigError, ScenarioError
 from railpilot.scenario.model import (
     CONTROLLERS,
@@ -625,9 +626,14 @@ def read_toml(path: Path) -> dict[str, Any]:
         raise ScenarioError("SCENARIO", str(path), f"valid TOML ({exc})") from exc
 
 
-def load_scenario(path: Path | str) -> Scenario:
-    """Read and validate an ``ep-braking`` scenario file."""
-    return scenario_from_mapping(read_toml(Path(path)))
+def load_scenario(path: Path | str) -> Scenario | EddyScenario:
+    """Read and validate a scenario file of either kind: ``kind = "ep-braking"`` (the
+    default) gives a :class:`Scenario`, ``kind = "eddy-brake"`` an
+    :class:`~railpilot.eddy.scenario.EddyScenario` (paper 003)."""
+    data = read_toml(Path(path))
+    if data.get("kind") == "eddy-brake":
+        return EddyScenario.from_mapping(data)
+    return scenario_from_mapping(data)
 
 
 def load_scenario_and_spec(path: Path | str) -> tuple[Scenario, MonteCarloSpec | None]:
