@@ -40,7 +40,7 @@ from numba import njit
 from scipy.optimize import brentq
 
 from railpilot.brakes.base import PackContext
-from railpilot.brakes.lag_delay import MAX_DELAY_STEPS
+from railpilot.brakes.lag_delay import MAX_DELAY_STEPS, ring_back, ring_next
 from railpilot.errors import ConfigError
 from railpilot.units import Num
 
@@ -333,19 +333,19 @@ def brake_pipe_ato_step(
     a_max = p[P_A_MAX]
     uc = min(max(-u / a_max, 0.0), 1.0)
     length = int(p[P_BUF_LEN])
-    k = int(state[ST_K])
-    buffer[k % length] = uc
-    state[ST_K] = k + 1
+    k = int(state[ST_K])  # the ring's write slot
+    buffer[k] = uc
+    state[ST_K] = ring_next(k, length)
     apply_faster = p[P_APPLY_FASTER] > 0.0
     total = 0.0
     for j in range(int(p[P_N_SEG])):
         b = P_SEG0 + j * SEG_STRIDE
         n_a = int(p[b + SEG_N_APP])
         n_r = int(p[b + SEG_N_REL])
-        app_old = buffer[(k - n_a - 1) % length]
-        app_new = buffer[(k - n_a) % length]
-        rel_old = buffer[(k - n_r - 1) % length]
-        rel_new = buffer[(k - n_r) % length]
+        app_old = buffer[ring_back(k, n_a + 1, length)]
+        app_new = buffer[ring_back(k, n_a, length)]
+        rel_old = buffer[ring_back(k, n_r + 1, length)]
+        rel_new = buffer[ring_back(k, n_r, length)]
         y = state[ST_Y0 + j]
         # before either delayed command switches within this step
         target = _received(app_old, rel_old, apply_faster)

@@ -41,6 +41,7 @@ from numba import njit
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
+from railpilot.brakes.lag_delay import ring_back, ring_next
 from railpilot.errors import ConfigError
 from railpilot.units import KMH_PER_MPS, kn_to_n
 
@@ -244,10 +245,10 @@ def ep_brake_step(
     either: with a held demand the brake force changes at most ``r g(v)`` per second.
     """
     length = int(p[P_BUF_LEN])
-    k = int(state[S_K])
-    buffer[k % length] = demand_n
-    delayed = buffer[(k - int(p[P_DELAY_N])) % length]
-    state[S_K] = k + 1
+    k = int(state[S_K])  # the ring's write slot
+    buffer[k] = demand_n
+    delayed = buffer[ring_back(k, int(p[P_DELAY_N]), length)]
+    state[S_K] = ring_next(k, length)
 
     # jerk limit: the demand the brake manager acts on moves at a bounded rate
     step = p[P_JERK_RATE] * dt

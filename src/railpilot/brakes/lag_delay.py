@@ -71,26 +71,47 @@ def _state_space(num: np.ndarray, den: np.ndarray) -> tuple[np.ndarray, ...]:
 
 
 @njit(cache=True)
+def ring_back(slot: int, back: int, length: int) -> int:
+    """The slot ``back`` places before ``slot`` in a ring of ``length`` (``back < length``).
+
+    A comparison instead of ``%`` (Python's modulo, slow in a loop that runs every step of
+    every Monte Carlo run).
+    """
+    j = slot - back
+    return j + length if j < 0 else j
+
+
+@njit(cache=True)
+def ring_next(slot: int, length: int) -> int:
+    """The slot after ``slot`` in a ring of ``length``."""
+    slot += 1
+    return 0 if slot == length else slot
+
+
+@njit(cache=True)
 def lag_delay_exact_step(
     params: np.ndarray, state: np.ndarray, buffer: np.ndarray, command: float
 ) -> float:
     """Advance the exact model one step with ``command`` held; return the new output.
 
-    ``state = [output, step_index]``; ``buffer`` has ``n + 2`` slots of past commands.
+    ``state = [output, write slot]``; ``buffer`` is a ring of ``n + 2`` slots of past
+    commands (the slot advances by one each step; the delayed commands are read ``n`` and
+    ``n + 1`` slots back). Ring arithmetic by comparison, not ``%``: this runs every
+    simulation step of every Monte Carlo run.
     """
     length = int(params[E_LEN])
     n = int(params[E_N])
-    k = int(state[1])
-    buffer[k % length] = command
-    current = buffer[(k - n) % length]
-    previous = buffer[(k - n - 1) % length]
+    i = int(state[1])
+    buffer[i] = command
+    current = buffer[ring_back(i, n, length)]
+    previous = buffer[ring_back(i, n + 1, length)]
     y = state[0]
     if params[E_FRAC] > 0.0:
         # first the part of the step where the older command is still arriving
         y = previous + (y - previous) * params[E_ALPHA_F]
     y = current + (y - current) * params[E_ALPHA_REST]
     state[0] = y
-    state[1] = k + 1
+    state[1] = ring_next(i, length)
     return y
 
 

@@ -189,6 +189,11 @@ def run_kernel(
     adhesion_n = real[R_ADHESION] * mass * G
     notches = real[R_NOTCHES]
     by_distance = dist_ref.shape[1] > 0
+    # counters instead of k % period (an integer modulo every step is slow)
+    next_update = 0
+    n_updates = 0
+    next_record = 0
+    n_records = 0
     rx = ref_x[0]
     rv = ref_v[0]
     raff = ref_a_ff[0]
@@ -213,7 +218,10 @@ def run_kernel(
             if np.isnan(verr_co) and v <= ato[A_V_CO]:
                 verr_co = abs(verr)
         # --- controller (ATO cycle), on measured signals
-        if k % control_every == 0:
+        if k == next_update:
+            next_update += control_every
+            update_index = n_updates  # k // control_every
+            n_updates += 1
             if by_distance:
                 # re-planned on distance to go: where the train is, not where it was due
                 rx = x_odo
@@ -226,7 +234,7 @@ def run_kernel(
             wheel_v = v * (1.0 - real[R_SLIDE_SLIP]) if sliding else v
             v_meas = wheel_v * (1.0 + real[R_WHEEL_SCALE])
             if speed_noise.shape[0] > 0:
-                v_meas += speed_noise[k // control_every]
+                v_meas += speed_noise[update_index]
             if real[R_SPEED_RES] > 0.0:
                 v_meas = np.round(v_meas / real[R_SPEED_RES]) * real[R_SPEED_RES]
             v_kmh_m = abs(v_meas) * KMH_PER_MPS
@@ -341,8 +349,10 @@ def run_kernel(
             brake_prev = brake_decel
         else:
             a = 0.0
-        if n_rec > 0 and k % record_every == 0:
-            r = k // record_every
+        if n_rec > 0 and k == next_record:
+            next_record += record_every
+            r = n_records
+            n_records += 1
             if r < n_rec:
                 record[r, 0] = t
                 record[r, 1] = x_t
