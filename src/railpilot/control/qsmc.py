@@ -81,11 +81,53 @@ N_PARAMS = 13
     S_USW,  # reaching (switching) part of u [m/s^2]
     S_E1,  # predicted position error E1 [m]
     S_E2,  # predicted speed error E2 [m/s]
-) = range(14)
-N_STATE = 14
+    S_FACTORS_DT,  # the control period the actuator model's factors below are for [s]
+    S_EZ,  # exp(-2 dt / sigma)
+    S_EA,  # exp(-dt / tau)
+    S_MIX,  # (ez - ea) / (1 - 2 tau / sigma)
+) = range(18)
+N_STATE = 18
 
 LAW_EXPONENTIAL = 0.0
 LAW_VARIABLE_SPEED = 1.0
+
+
+@njit(cache=True)
+def _actuator_factors(sigma: float, tau: float, dt: float) -> tuple[float, float, float]:
+    """``(ez, ea, mix)`` of :func:`_actuator_advance` for ``dt`` (the exponentials, computed
+    once per control period rather than twice per update)."""
+    if sigma > 0.0:
+        lam = 2.0 / sigma
+        ez = math.exp(-lam * dt)
+    else:
+        lam = math.inf
+        ez = 0.0
+    if tau <= 0.0:
+        return ez, 0.0, 0.0
+    ea = math.exp(-dt / tau)
+    if sigma <= 0.0:
+        return ez, ea, 0.0
+    # particular part driven by 2 z0 exp(-lam t) / tau; (ez - ea)/(1 - lam tau) has a
+    # removable singularity at lam tau = 1, where it tends to (dt / tau) ea
+    g = 1.0 - lam * tau
+    mix = (ez - ea) / g if abs(g) > 1e-6 else (dt / tau) * ea
+    return ez, ea, mix
+
+
+@njit(cache=True)
+def _actuator_apply(
+    a: float, z: float, u: float, sigma: float, tau: float, ez: float, ea: float, mix: float
+) -> tuple[float, float]:
+    """One step of the Pade + lag model with the factors of :func:`_actuator_factors`."""
+    z0 = z - u
+    a0 = a - u
+    if tau <= 0.0:
+        # no lag: a is the Pade output 2 z - u
+        z1 = z0 * ez
+        return u + 2.0 * z1, u + z1
+    if sigma <= 0.0:
+        return u + a0 * ea, u
+    return u + a0 * ea + 2.0 * z0 * mix, u + z0 * ez
 
 
 @njit(cache=True)
@@ -97,26 +139,8 @@ def _actuator_advance(
     ``dz/dt = lam (u - z)``, ``tau da/dt = 2 z - u - a``; in deviations from the steady
     state ``a = z = u`` this is triangular, so the solution is two exponentials.
     """
-    z0 = z - u
-    a0 = a - u
-    if sigma > 0.0:
-        lam = 2.0 / sigma
-        ez = math.exp(-lam * dt)
-    else:
-        lam = math.inf
-        ez = 0.0
-    if tau <= 0.0:
-        # no lag: a is the Pade output 2 z - u
-        z1 = z0 * ez
-        return u + 2.0 * z1, u + z1
-    ea = math.exp(-dt / tau)
-    if sigma <= 0.0:
-        return u + a0 * ea, u
-    # particular part driven by 2 z0 exp(-lam t) / tau; (ez - ea)/(1 - lam tau) has a
-    # removable singularity at lam tau = 1, where it tends to (dt / tau) ea
-    g = 1.0 - lam * tau
-    mix = (ez - ea) / g if abs(g) > 1e-6 else (dt / tau) * ea
-    return u + a0 * ea + 2.0 * z0 * mix, u + z0 * ez
+    ez, ea, mix = _actuator_factors(sigma, tau, dt)
+    return _actuator_apply(a, z, u, sigma, tau, ez, ea, mix)
 
 
 @njit(cache=True)
@@ -200,8 +224,12 @@ def qsmc_step(
     # what E2 should be next step if the model is right and d = d_hat
     state[S_E2_PRED] = e2 - dt * (u_out - ref_a) + dt * (deficit - d_hat)
     # actuator models see what was actually sent (anti-windup for free)
-    am, zm = _actuator_advance(am, zm, u_out, sigma, tau, dt)
-    ar, zr = _actuator_advance(ar, zr, ref_a, sigma, tau, dt)
+    if state[S_FACTORS_DT] != dt:
+        state[S_EZ], state[S_EA], state[S_MIX] = _actuator_factors(sigma, tau, dt)
+        state[S_FACTORS_DT] = dt
+    ez, ea, mix = state[S_EZ], state[S_EA], state[S_MIX]
+    am, zm = _actuator_apply(am, zm, u_out, sigma, tau, ez, ea, mix)
+    ar, zr = _actuator_apply(ar, zr, ref_a, sigma, tau, ez, ea, mix)
     state[S_AM] = am
     state[S_ZM] = zm
     state[S_AR] = ar
