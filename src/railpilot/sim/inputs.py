@@ -50,9 +50,15 @@ if TYPE_CHECKING:  # the simulator never imports the scenario package at run tim
 def ato_brake_model(scenario: Scenario) -> tuple[float, float]:
     """The ATO's model of the brake's ``(delay, lag)`` [s].
 
-    ``ato.brake_delay_s`` and ``ato.brake_lag_s``; each one not given is the plant's.
+    ``ato.brake_delay_s`` and ``ato.brake_lag_s``; each one not given is the plant's: the
+    whole train's for a brake whose response depends on the train's length (a brake
+    pipe's wave takes ``L / c`` to the rear: ``train_lead_s(length)``), else ``lead_s``.
     """
-    delay, lag = scenario.brake.lead_s
+    train_lead = getattr(scenario.brake, "train_lead_s", None)
+    if train_lead is not None:
+        delay, lag = train_lead(scenario.train.length_m)
+    else:
+        delay, lag = scenario.brake.lead_s
     ato = scenario.ato
     return (
         delay if ato.brake_delay_s is None else ato.brake_delay_s,
