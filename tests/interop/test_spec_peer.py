@@ -194,6 +194,8 @@ class Ground:
         )
         os.chmod(keys, 0o600)
         self.lines: list[str] = []
+        # notified for every line the server logs (and at its end): waits wake on events
+        self._logged = threading.Condition()
         self.proc = subprocess.Popen(
             [
                 str(RAILPILOT),
@@ -225,18 +227,24 @@ class Ground:
     def _read(self) -> None:
         assert self.proc.stderr is not None
         for line in self.proc.stderr:
-            self.lines.append(line)
+            with self._logged:
+                self.lines.append(line)
+                self._logged.notify_all()
+        with self._logged:
+            self._logged.notify_all()
 
     def _logged_port(self, pattern: str) -> int:
         deadline = time.monotonic() + WAIT
-        while time.monotonic() < deadline:
-            for line in list(self.lines):
-                m = re.search(pattern, line)
-                if m:
-                    return int(m.group(1))
-            if self.proc.poll() is not None:
-                break
-            time.sleep(0.02)
+        with self._logged:
+            while True:
+                for line in self.lines:
+                    m = re.search(pattern, line)
+                    if m:
+                        return int(m.group(1))
+                left = deadline - time.monotonic()
+                if left <= 0 or self.proc.poll() is not None:
+                    break
+                self._logged.wait(left)  # the next line the server logs
         raise RuntimeError("ground server did not start:\n" + "".join(self.lines))
 
     def admin(self, request: dict[str, Any]) -> dict[str, Any]:
@@ -265,14 +273,22 @@ class Ground:
         return {}
 
     def poll(self, predicate: Any, what: str) -> Any:
+        """Re-check ``predicate`` (an admin query) until it holds or WAIT passes.
+
+        The server's state is only visible through queries, so this polls a condition with
+        a deadline; a line the server logs (an acknowledgement, a registration) wakes it at
+        once, and a silent change (a TSR re-confirmed) is seen within 50 ms.
+        """
         deadline = time.monotonic() + WAIT
         while True:
             value = predicate()
             if value:
                 return value
-            if time.monotonic() > deadline:
+            left = deadline - time.monotonic()
+            if left <= 0:
                 raise TimeoutError(f"ground: timed out waiting for {what}")
-            time.sleep(0.05)
+            with self._logged:
+                self._logged.wait(min(0.05, left))
 
     def stop(self) -> int:
         if self.proc.poll() is None:
@@ -496,6 +512,11 @@ def test_tsr_set_resent_until_acknowledged(ground: Ground, peer: sp.OnboardPeer)
     assert delta(before, after, "frames_lost") >= 1  # 5.1: the lost ack is a gap of 1
 
 
+def _heartbeats(peer: sp.OnboardPeer) -> int:
+    with peer.lock:
+        return sum(1 for f in peer.received if f.msg_type == sp.HEARTBEAT)
+
+
 def test_tsr_session_reuse_for_other_restriction_refused(
     ground: Ground, peer: sp.OnboardPeer
 ) -> None:
@@ -506,7 +527,10 @@ def test_tsr_session_reuse_for_other_restriction_refused(
     r = ground.cli("tsr", "set", *common, "--limit-kmh", "50", "--valid-s", "600")
     assert r.returncode == 2  # link-operations.md: refused for a train
     assert "error" in (r.stdout + r.stderr)
-    time.sleep(0.3)
+    # a delivery would leave at once, before the ground's next heartbeats: after two more
+    # of them, nothing of the refused TSR can still be on its way
+    beats = _heartbeats(peer)
+    peer.wait_for(lambda: _heartbeats(peer) >= beats + 2, WAIT, "two more ground heartbeats")
     assert {t.limit_cms for t, _ in _tsr_sets(peer, 10)} == {round(40 / 3.6 * 100)}
 
 
