@@ -9,12 +9,12 @@ A brake model is a frozen dataclass of its parameters (its configuration) with:
 * ``lead_s -> (delay_s, lag_s)``: its response, for the ATO's tuning and feed-forward;
 * ``changeover_kmh``: electric/air changeover speed [km/h] (0 for a brake without one);
 
-optionally ``FILE_KEYS`` (scenario-file key -> (field, conversion to SI), for keys the
-file writes in other units, e.g. ``fade_rate_kn_per_s``) and ``FILE_LISTS`` (a list key ->
-the fields it fills): the scenario loader reads every other field under its own name, and a
-field that is itself a config dataclass from a sub-table; and one compiled step with this
-signature (the *step* of its registry entry,
-brakes/registry.py)::
+optionally ``FILE_KEYS`` (scenario-file key -> (field, conversion to SI, conversion
+back for error messages), for keys the file writes in other units, e.g.
+``fade_rate_kn_per_s``) and ``FILE_LISTS`` (a list key -> the fields it fills): the
+scenario loader reads every other field under its own name, and a field that is itself a
+config dataclass from a sub-table; and one compiled step with this signature (the *step*
+of its registry entry, brakes/registry.py)::
 
     step(params, state, buffer, u, v, t, dt, m_eff_lw, m_eff) -> (electric_n, air_n, demand_n)
 

@@ -43,7 +43,7 @@ from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.brakes.lag_delay import ring_back, ring_next
 from railpilot.errors import ConfigError
-from railpilot.units import KMH_PER_MPS, kn_to_n
+from railpilot.units import KMH_PER_MPS, kn_to_n, n_to_kn
 
 (
     P_DELAY_N,
@@ -146,8 +146,8 @@ class EPBrake:
 
     name: ClassVar[str] = "ep-blended"
     #: scenario-file keys written in other units or as one list (brakes/base.py)
-    FILE_KEYS: ClassVar[dict[str, tuple[str, Any]]] = {
-        "fade_rate_kn_per_s": ("fade_rate_n_per_s", kn_to_n)
+    FILE_KEYS: ClassVar[dict[str, tuple[str, Any, Any]]] = {
+        "fade_rate_kn_per_s": ("fade_rate_n_per_s", kn_to_n, n_to_kn)
     }
     FILE_LISTS: ClassVar[dict[str, tuple[str, ...]]] = {"beta": ("beta1", "beta2", "beta3")}
 

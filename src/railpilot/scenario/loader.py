@@ -235,13 +235,9 @@ _FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
     "ato.mass_kg": ("ato.mass_t", lambda v: v / 1000.0),
     "train.electric_brake.max_force_n": ("train.electric_brake.max_force_kn", lambda v: v / 1000.0),
     "train.electric_brake.max_power_w": ("train.electric_brake.max_power_kw", lambda v: v / 1000.0),
-    "brake.fade_rate_n_per_s": ("brake.fade_rate_kn_per_s", lambda v: v / 1000.0),
     "train.davis_a0": ("train.davis[0]", lambda v: v),
     "train.davis_a1": ("train.davis[1]", lambda v: v),
     "train.davis_a2": ("train.davis[2]", lambda v: v),
-    "brake.beta1": ("brake.beta[0]", lambda v: v),
-    "brake.beta2": ("brake.beta[1]", lambda v: v),
-    "brake.beta3": ("brake.beta[2]", lambda v: v),
     "reference.v0": ("reference.v0_kmh", mps_to_kmh),
     "reference.decel": ("reference.decel_mps2", lambda v: v),
     "reference.jerk": ("reference.jerk_mps3", lambda v: v),
@@ -250,6 +246,22 @@ _FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
     "disturbance.constant_n": ("disturbance.constant_kn", lambda v: v / 1000.0),
     "disturbance.random_std_n": ("disturbance.random_std_kn", lambda v: v / 1000.0),
 }
+
+
+def _brake_file_keys() -> dict[str, tuple[str, Callable[[Any], Any]]]:
+    """The brake models' own file keys (brakes/base.py ``FILE_KEYS``, ``FILE_LISTS``)."""
+    out: dict[str, tuple[str, Callable[[Any], Any]]] = {}
+    for entry in BRAKES.values():
+        for key, (field, _, back) in getattr(entry.cls, "FILE_KEYS", {}).items():
+            out[f"brake.{field}"] = (f"brake.{key}", back)
+        for key, fields in getattr(entry.cls, "FILE_LISTS", {}).items():
+            for i, field in enumerate(fields):
+                out[f"brake.{field}"] = (f"brake.{key}[{i}]", lambda v: v)
+    return out
+
+
+_FILE_KEYS.update(_brake_file_keys())
+
 #: fields whose value is a (start, end) pair in metres; the file writes km
 _KM_SPANS = re.compile(r"^(line\.(gradients|curves|speed_limits)|disturbance\.regions)\[\d+\]$")
 
@@ -358,9 +370,9 @@ def _config_keys(t: _Table, cls: type) -> dict[str, Any]:
     """Keyword arguments of config dataclass ``cls`` from the keys ``t`` gives (only
     those: the dataclass's defaults apply to the rest). A field that is itself a config
     dataclass is read from a sub-table of its name."""
-    file_keys: dict[str, tuple[str, Callable[[float], Any]]] = getattr(cls, "FILE_KEYS", {})
+    file_keys: dict[str, tuple[str, Callable[[float], Any], Any]] = getattr(cls, "FILE_KEYS", {})
     file_lists: dict[str, tuple[str, ...]] = getattr(cls, "FILE_LISTS", {})
-    written_otherwise = {field for field, _ in file_keys.values()}
+    written_otherwise = {field for field, _, _ in file_keys.values()}
     written_otherwise |= {field for fields in file_lists.values() for field in fields}
     hints = typing.get_type_hints(cls)
     kw: dict[str, Any] = {}
@@ -380,7 +392,7 @@ def _config_keys(t: _Table, cls: type) -> dict[str, Any]:
             t.put(kw, f.name, f.name, read="string")
         else:
             t.put(kw, f.name, f.name)
-    for key, (field, convert) in file_keys.items():
+    for key, (field, convert, _) in file_keys.items():
         t.put(kw, key, field, convert)
     for key, fields in file_lists.items():
         values = t.numbers(key, len(fields))
