@@ -9,7 +9,6 @@ run and a batch of one are the same run, bit for bit.
 from __future__ import annotations
 
 import json
-import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -200,9 +199,3 @@ def test_simulate_command_refuses_an_unknown_controller(capsys) -> None:  # type
         main(["simulate", str(PAPER002), "--controller", "lqr"])
     assert stop.value.code == 2
     assert "one of pid, smarc, qsmc" in capsys.readouterr().err
-
-
-def test_the_example_module_imports_without_side_effects() -> None:
-    before = set(sys.modules)
-    load_controller(f"{EXAMPLE}:CompiledTracker")
-    assert not any("railpilot.sim" in m for m in set(sys.modules) - before)

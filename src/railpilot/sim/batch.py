@@ -34,7 +34,7 @@ from railpilot.brakes.registry import brake_entry_of
 from railpilot.control.user import Binding, bind
 from railpilot.errors import ConfigError
 from railpilot.sim import engine
-from railpilot.sim.inputs import ato_brake_model, reference_inputs, run_inputs
+from railpilot.sim.inputs import ato_brake_model, line_inputs, reference_inputs, run_inputs
 from railpilot.sim.layout import ReferenceIn, RunInputs, batch_row, stack_runs
 from railpilot.sim.run import metrics_dict, resolve_controller
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
@@ -239,12 +239,14 @@ def _chunk_inputs(
     stop: int,
 ) -> RunInputs:
     """The batch of runs ``start..stop``: each run's own description, stacked."""
+    line = line_inputs(nominal)  # no sampled parameter changes the line
     return stack_runs(
         [
             run_inputs(
                 _variant(nominal, {k: float(v[i]) for k, v in values.items()}, int(seeds[i])),
                 binding,
                 reference=reference,
+                line=line,
             )
             for i in range(start, stop)
         ]

@@ -212,19 +212,23 @@ def controller_inputs(binding: Binding) -> ControllerIn:
 
 
 def run_inputs(
-    scenario: Scenario, binding: Binding, reference: ReferenceIn | None = None
+    scenario: Scenario,
+    binding: Binding,
+    reference: ReferenceIn | None = None,
+    line: LineIn | None = None,
 ) -> RunInputs:
     """The description of one run of ``scenario`` with the bound controller.
 
-    ``reference``: the sampled reference of a scenario with the same curve, sim settings
-    and ATO model, reused (a Monte Carlo's runs share it).
+    ``reference`` and ``line``: the sampled reference and the line table of a scenario with
+    the same curve, sim settings, ATO model and line, reused (a Monte Carlo's runs share
+    them: a sweep varies neither).
     """
     ref = reference_inputs(scenario) if reference is None else reference
     ato = ato_inputs(scenario)
     return RunInputs(
         sim=sim_inputs(scenario),
         train=train_inputs(scenario),
-        line=line_inputs(scenario),
+        line=line_inputs(scenario) if line is None else line,
         brake=brake_inputs(scenario, ato),
         controller=controller_inputs(binding),
         ato=ato,
