@@ -432,7 +432,7 @@ def plan(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCur
     # never worse than spreading the margin uniformly: on steep descents the family above
     # can lose to it (docs/onboard.md, "Planned curve": measured), so the baseline is a
     # candidate too
-    uniform = linear_margin(train, sec, running_time_s)
+    uniform = _uniform(train, sec, quickest, running_time_s)
     if best is None or uniform.energy_net_kwh < best.energy_net_kwh:
         return uniform
     return best
@@ -448,6 +448,13 @@ def _search_v1(
     lo, hi = 0.5, top
     while train.coast_to_brake_speed_mps(hi) < top and hi < 1e3:
         hi *= 1.25
+    # this family's fastest: if even that is too slow, it cannot meet the time
+    env = _envelope(
+        q, sec.line_w, sec.ceiling_mps, train.coast_to_brake_speed_mps(hi), vb, sec.dx_m
+    )
+    v = _forward(q, sec.line_w, sec.ceiling_mps, env, hi, sec.dx_m)
+    if _evaluate(q, sec.line_w, v, sec.dx_m)[0] > running_time_s + TIME_TOLERANCE_S:
+        return None
     for _ in range(60):
         v1 = 0.5 * (lo + hi)
         vf = train.coast_to_brake_speed_mps(v1)
@@ -471,7 +478,12 @@ def linear_margin(train: DrivingTrain, sec: Section, running_time_s: float) -> P
     ``v(s) = k v_fast(s)`` with ``k = T_fast / T``: the same running time spread uniformly
     (OSRD's linear allowance).
     """
-    quickest = fastest(train, sec)
+    return _uniform(train, sec, fastest(train, sec), running_time_s)
+
+
+def _uniform(
+    train: DrivingTrain, sec: Section, quickest: PlannedCurve, running_time_s: float
+) -> PlannedCurve:
     k = min(1.0, quickest.running_time_s / running_time_s)
     curve = _result(train, sec, quickest.speed_mps * k, None, None, running_time_s)
     return replace(curve, strategy="uniform")
