@@ -35,3 +35,18 @@ class ConfigError(RailpilotError, ValueError):
 
 class ScenarioError(ConfigError):
     """A scenario file is malformed (unknown key, wrong type, out of range)."""
+
+
+class LineError(ConfigError):
+    """A line file or line model is malformed (railpilot.line).
+
+    ``field`` names the entry as the file writes it, e.g.
+    ``"gradients[3] (km 12.400-11.900).end_km"``; ``source`` (optional) is the file the
+    entry came from and prefixes the message.
+    """
+
+    def __init__(self, field: str, value: Any, allowed: str, source: str | None = None) -> None:
+        super().__init__(field, value, allowed)
+        self.source = source
+        if source is not None:
+            self.args = (f"{source}: {self.args[0]}",)
