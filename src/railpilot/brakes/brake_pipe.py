@@ -1,39 +1,58 @@
-"""Heavy-haul automatic air brake: the brake-pipe wave and each wagon group's cylinder.
+"""Heavy-haul automatic air brake: the brake-pipe wave, the pipe's flow and each group's cylinders.
 
-The ATO's command sets the brake-pipe reduction at the locomotive; the reduction travels
-down the train as a wave, and each part of the train fills its brake cylinders with its
-own lag once the wave reaches it. So the rear of a 1,600 m train brakes seconds after the
-front (issue 9, item 6). Model, sources and validation: docs/heavy-haul-brake.md.
+The ATO's command sets the brake-pipe reduction at the locomotive. The first change of
+pressure travels down the train as a wave; the full reduction follows more slowly, because
+the air must flow along the pipe and out through the driver's brake valve; and each part of
+the train fills its brake cylinders with its own lag. So the rear of a 1,600 m train brakes
+seconds after the front, and completes its application tens of seconds later (issue 9,
+item 6). Model, sources and validation: docs/heavy-haul-brake.md.
 
 Model (``n`` groups of wagons, ``j = 0 .. n-1``)::
 
-    uc(t)    = clip(-u(t) / a_max, 0, 1)               demanded fraction of full service
-    x_j      = j L / (n - 1)                            group j's distance from the front [m]
-    d_a,j    = t_r + x_j / c_a,   d_r,j = t_r + x_j / c_r   wave arrival delays [s]
-    r_j(t)   = max(uc(t - d_a,j), uc(t - d_r,j))       received target (c_a >= c_r; min else)
-    dy_j/dt  = (r_j - y_j) / T_a   if r_j > y_j         application (cylinder filling)
-             = (r_j - y_j) / T_r   otherwise            release (cylinder venting)
-    F_air    = sum_j y_j / n * a_max * m_eff            [N]
+    uc(t)   = clip(-u(t) / a_max, 0, 1)                  demanded fraction of full service
+    x_j     = j L / (n - 1)                               group j's distance from the front [m]
+    W(x), S2(x)                                           mean and variance [s, s^2] of the
+                                                          arrival of the pipe's reduction at x
+    M_j     = t_r + x_j / c + W(x_j) + T                  group j's mean response time [s]
+    d_j     = max(t_r + x_j / c, M_j - sqrt(S2(x_j) + T^2))   its dead time [s]
+    T_j     = M_j - d_j                                   its lag [s]
+    r_j(t)  = max(uc(t - d_a,j), uc(t - d_r,j))          received target (min if d_a,j > d_r,j)
+    dy_j/dt = (r_j - y_j) / T_a,j  if r_j > y_j           application (cylinder filling)
+            = (r_j - y_j) / T_r,j  otherwise              release (cylinder venting)
+    F_air   = sum_j y_j / n * a_max * m_eff               [N]
 
-``L`` the train length, ``c_a`` / ``c_r`` the application / release wave speeds, ``t_r`` a
-reaction (dead) time at the locomotive, ``T_a = t_app / ln 20`` so that a group reaches
-95 % of a step in the application time ``t_app``, and ``T_r = t_rel / ln(3.8 / 0.4)`` so
-that a full cylinder (3.8 bar) vents to 0.4 bar in the release time ``t_rel`` (the end
-points of the UIC single-wagon test). Application waves travel at ``c_a`` and release
-waves at ``c_r``: with ``c_a > c_r`` a release that a re-application overtakes never
-reaches the rear, which ``max`` gives.
+with ``c, T = c_a, T_a`` for an application and ``c_r, T_r`` for a release. ``L`` is the
+train length, ``c_a`` / ``c_r`` the application / release wave speeds, ``t_r`` a reaction
+(dead) time at the locomotive, ``T_a = t_app / ln 20`` the cylinder lag that reaches 95 % of
+a step in the application time ``t_app`` and ``T_r = t_rel / ln(3.8 / 0.4)`` the one that
+vents a full cylinder (3.8 bar) to 0.4 bar in the release time ``t_rel`` (the end points of
+the UIC single-wagon test).
+
+The pipe (:func:`pipe_reduction_moments`): the reduction diffuses along the pipe
+(``r_t = D r_xx``, closed at the rear) and the driver's valve vents it through a limited
+flow (``D r_x(0) = G (r(0) - uc)``), so with ``a = 1 / G`` and ``b = 1 / D``::
+
+    W(x)  = a L + b x (2 L - x) / 2
+    V(x)  = a (a L^2 + b L^3 / 3)
+            + b (a L (L x - x^2 / 2) + b (2 L^3 x / 3 - L x^3 / 3 + x^4 / 12) / 2)
+    S2(x) = 2 V(x) - W(x)^2
+
+Each group is a dead time and a lag with the mean (exactly) and, where a dead time no
+shorter than the wave's arrival allows, the variance of wave, pipe and cylinder together.
+The train's equivalent build-up time, the mean of the ``M_j``, grows as ``a + b L + c L^2``,
+the form of the ETCS conversion model, against which ``G`` and ``D`` are calibrated.
 
 The kernel is exact for a command held over each step (zero-order hold): one command
-history (a ring buffer, sized for the slowest wave to the rear) serves every group; a
-delay that is not a whole number of steps switches the delayed command within the step,
-and each group's lag is advanced exactly (``exp(-h / T)``) over each part of the step, as
-in brakes/lag_delay.py.
+history (a ring buffer, sized for the longest dead time) serves every group; a dead time
+that is not a whole number of steps switches the delayed command within the step, and each
+group's lag is advanced exactly (``exp(-h / T)``) over each part of the step, as in
+brakes/lag_delay.py.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import ClassVar, Literal
+from typing import ClassVar, Literal, NamedTuple
 
 import numpy as np
 from numba import njit
@@ -45,16 +64,16 @@ from railpilot.errors import ConfigError
 from railpilot.units import Num
 
 # --- params layout -------------------------------------------------------------------------
-#: number of groups; ring-buffer length; a_max [m/s^2]; 1.0 if the application wave is at
-#: least as fast as the release wave (the received target is then the max of the two
-#: delayed commands, else the min)
-P_N_SEG, P_BUF_LEN, P_A_MAX, P_APPLY_FASTER = range(4)
+#: number of groups; ring-buffer length; a_max [m/s^2]
+P_N_SEG, P_BUF_LEN, P_A_MAX = range(3)
 #: first group's block; each group has SEG_STRIDE floats
-P_SEG0 = 4
-#: per group: whole steps of the application / release delay; 1.0 if the application
-#: delay's fractional part is the smaller one (it switches first within a step); the
-#: group's share of the brake force [-]; then exp(-h/T_a), exp(-h/T_r) for the three parts
-#: of a step (before, between and after the two switches)
+P_SEG0 = 3
+#: per group: whole steps of the application / release dead time; 1.0 if the application
+#: dead time's fractional part is the smaller one (it switches first within a step); the
+#: group's share of the brake force [-]; then exp(-h/T_a,j), exp(-h/T_r,j) for the three
+#: parts of a step (before, between and after the two switches); 1.0 if the application
+#: reaches the group no later than a release (the received target is then the max of the
+#: two delayed commands, else the min)
 (
     SEG_N_APP,
     SEG_N_REL,
@@ -66,8 +85,9 @@ P_SEG0 = 4
     SEG_ALPHA2_REL,
     SEG_ALPHA3_APP,
     SEG_ALPHA3_REL,
-) = range(10)
-SEG_STRIDE = 10
+    SEG_APPLY_FIRST,
+) = range(11)
+SEG_STRIDE = 11
 # --- state layout: step index, then each group's cylinder fraction [-] ----------------------
 ST_K = 0
 ST_Y0 = 1
@@ -93,6 +113,17 @@ NOMINAL_TIMES_S: dict[str, tuple[float, float]] = {
 APPLIED_FRACTION = 0.95
 #: the release time ends when a 3.8 bar cylinder has vented to 0.4 bar
 RELEASED_FRACTION = 0.4 / 3.8
+
+#: the pipe's two effective constants, CALIBRATED (not measured): the driver's brake valve
+#: vents the pipe at G [m/s] (pipe length emptied per second) and the reduction diffuses
+#: along the pipe with D [m^2/s]. Fitted so that the default G brake's equivalent build-up
+#: time equals the ETCS conversion model's full-service value at 400 m and 1,500 m
+#: (:func:`calibrate_pipe_to_etcs`, rounded to three digits); the lengths in between are
+#: the validation (docs/heavy-haul-brake.md)
+VALVE_FLOW_MPS = 141.0
+PIPE_DIFFUSIVITY_M2PS = 21_900.0
+#: the lengths the pipe is calibrated at [m]
+CALIBRATION_LENGTHS_M = (400.0, 1500.0)
 
 #: bounds of the configuration (a configuration error beyond them, not a brake)
 MAX_SEGMENTS = 200
@@ -120,6 +151,79 @@ def segment_positions_m(train_length_m: float, n_segments: int) -> np.ndarray:
     group carries the same share ``1 / n`` of the brake force.
     """
     return np.linspace(0.0, float(train_length_m), int(n_segments))
+
+
+def pipe_reduction_moments(
+    x_m: Num,
+    train_length_m: float,
+    valve_flow_mps: float = VALVE_FLOW_MPS,
+    diffusivity_m2ps: float = PIPE_DIFFUSIVITY_M2PS,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Mean [s] and variance [s^2] of the arrival of the pipe's reduction at ``x_m`` [m].
+
+    After a step of the command at the driver's brake valve (``x = 0``), on a pipe
+    ``train_length_m`` [m] long. ``inf`` for either constant removes its term.
+
+    Notes
+    -----
+    The pipe's reduction ``r`` (a fraction of the commanded one) diffuses along the pipe,
+    which is closed at the rear, and the valve vents it through a limited flow::
+
+        r_t = D r_xx,    D r_x(0, t) = G (r(0, t) - uc),    r_x(L, t) = 0,    r(x, 0) = 0
+
+    ``1 - r(x, t)`` is the probability that the reduction has not yet arrived at ``x``,
+    so its integral over time is the mean arrival ``W`` and twice its first moment
+    ``V = integral t (1 - r) dt`` is the second moment. Integrating the equation over time
+    (once, and once more with weight ``t``) gives the boundary-value problems
+    ``D W'' = -1`` and ``D V'' = -W`` with the same boundary conditions, whose solutions,
+    with ``a = 1 / G`` and ``b = 1 / D``, are::
+
+        W(x) = a L + b x (2 L - x) / 2
+        V(x) = a (a L^2 + b L^3 / 3)
+               + b (a L (L x - x^2 / 2) + b (2 L^3 x / 3 - L x^3 / 3 + x^4 / 12) / 2)
+        variance = 2 V - W^2
+
+    Limits: an ideal pipe (``D = inf``) is a first-order lag ``L / G`` everywhere (mean
+    and standard deviation both ``L / G``); an ideal valve (``G = inf``) gives the rear a
+    mean of ``L^2 / (2 D)`` and a variance of ``L^4 / (6 D^2)``. The tests check both
+    moments against a numerical solution of the equation (scipy).
+    """
+    x = np.asarray(x_m, dtype=float)
+    length = float(train_length_m)
+    a = 0.0 if np.isinf(valve_flow_mps) else 1.0 / float(valve_flow_mps)
+    b = 0.0 if np.isinf(diffusivity_m2ps) else 1.0 / float(diffusivity_m2ps)
+    mean = a * length + b * x * (2.0 * length - x) / 2.0
+    second = a * (a * length**2 + b * length**3 / 3.0) + b * (
+        a * length * (length * x - x**2 / 2.0)
+        + b * (2.0 * length**3 * x / 3.0 - length * x**3 / 3.0 + x**4 / 12.0) / 2.0
+    )
+    variance = np.maximum(2.0 * second - mean**2, 0.0)
+    return mean, variance
+
+
+def _dead_time_and_lag(
+    wave_arrival_s: np.ndarray, pipe_mean_s: np.ndarray, pipe_variance_s2: np.ndarray, lag_s: float
+) -> tuple[np.ndarray, np.ndarray]:
+    """A dead time and a lag [s] per group: wave, pipe and cylinder in series.
+
+    The mean ``M = arrival + W + T`` is kept exactly; the variance ``S2 + T^2`` too where
+    the dead time ``M - sqrt(S2 + T^2)`` is no shorter than the wave's arrival, which a
+    group cannot respond before; else the dead time is the arrival and the lag the rest.
+    """
+    mean = wave_arrival_s + pipe_mean_s + lag_s
+    spread = np.sqrt(pipe_variance_s2 + lag_s**2)
+    delay = np.maximum(wave_arrival_s, mean - spread)
+    return delay, mean - delay
+
+
+class GroupTiming(NamedTuple):
+    """Each group's position [m] and dead times and lags [s] (application, release)."""
+
+    x_m: np.ndarray
+    delay_app_s: np.ndarray
+    lag_app_s: np.ndarray
+    delay_rel_s: np.ndarray
+    lag_rel_s: np.ndarray
 
 
 @dataclass(frozen=True)
@@ -152,6 +256,13 @@ class BrakePipeBrake:
     reaction_s
         Dead time [s] between the command and the start of the brake-pipe reduction at the
         locomotive (brake controller, driver's brake valve); 0 by default.
+    valve_flow_mps
+        ``G`` [m/s]: how fast the driver's brake valve vents the pipe, as pipe length per
+        second (141 m/s, calibrated to ETCS); ``inf`` = an ideal valve.
+    pipe_diffusivity_m2ps
+        ``D`` [m^2/s]: how fast the reduction spreads along the pipe (21,900 m^2/s,
+        calibrated to ETCS); ``inf`` = an ideal pipe. With both ``inf`` every group
+        receives the full reduction when the wave reaches it.
 
     The train length is the run's (``PackContext.train.length_m``).
     """
@@ -164,6 +275,8 @@ class BrakePipeBrake:
     n_segments: int = 40
     max_decel_mps2: float = 0.5
     reaction_s: float = 0.0
+    valve_flow_mps: float = VALVE_FLOW_MPS
+    pipe_diffusivity_m2ps: float = PIPE_DIFFUSIVITY_M2PS
 
     name: ClassVar[str] = "brake-pipe"
     #: no electric brake, so no changeover
@@ -194,6 +307,12 @@ class BrakePipeBrake:
             raise ConfigError(
                 "brake.reaction_s", self.reaction_s, f"a number in [0, {MAX_REACTION_S:g}] s"
             )
+        for name in ("valve_flow_mps", "pipe_diffusivity_m2ps"):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not (
+                isinstance(value, int | float | np.integer | np.floating) and value > 0
+            ):
+                raise ConfigError(f"brake.{name}", value, "a number > 0 (inf: ideal)")
 
     @property
     def application_s(self) -> float:
@@ -211,21 +330,49 @@ class BrakePipeBrake:
 
     @property
     def lead_s(self) -> tuple[float, float]:
-        """``(delay, lag)`` [s] of the front of the train: ``(t_r, T_a)``.
+        """``(delay, lag)`` [s] of the locomotive's own cylinders: ``(t_r, T_a)``.
 
         brakes/base.py gives ``lead_s`` no train; for the whole train use
         :meth:`train_lead_s`, whose sum is the equivalent build-up time.
         """
         return self.reaction_s, application_lag_s(self.application_s)
 
-    def train_lead_s(self, train_length_m: float) -> tuple[float, float]:
-        """``(delay, lag)`` [s] of the whole train: ``(t_r + L / (2 c_a), T_a)``.
+    def group_timing(self, train_length_m: float) -> GroupTiming:
+        """Each group's dead times and lags [s] on a train ``train_length_m`` [m] long."""
+        if not (np.isfinite(train_length_m) and train_length_m > 0):
+            raise ConfigError("train.length_m", train_length_m, "a finite number > 0")
+        x = segment_positions_m(train_length_m, self.n_segments)
+        mean, variance = pipe_reduction_moments(
+            x, train_length_m, self.valve_flow_mps, self.pipe_diffusivity_m2ps
+        )
+        delay_app, lag_app = _dead_time_and_lag(
+            self.reaction_s + x / self.application_wave_mps,
+            mean,
+            variance,
+            application_lag_s(self.application_s),
+        )
+        delay_rel, lag_rel = _dead_time_and_lag(
+            self.reaction_s + x / self.release_wave_mps,
+            mean,
+            variance,
+            release_lag_s(self.release_s),
+        )
+        return GroupTiming(x, delay_app, lag_app, delay_rel, lag_rel)
 
-        The mean wave delay plus the group lag: a dead time and a lag with the same
-        equivalent build-up time (:func:`equivalent_build_up_time_s`).
+    def train_lead_s(self, train_length_m: float) -> tuple[float, float]:
+        """``(delay, lag)`` [s] of the whole train's application, for the ATO's model.
+
+        A dead time and a lag with the mean (the equivalent build-up time,
+        :func:`equivalent_build_up_time_s`) and, where a non-negative dead time allows, the
+        variance of the train's response to a full-service step (the mixture of the groups'
+        dead-time-plus-lag responses).
         """
-        delay = self.reaction_s + float(train_length_m) / (2.0 * self.application_wave_mps)
-        return delay, application_lag_s(self.application_s)
+        timing = self.group_timing(train_length_m)
+        means = timing.delay_app_s + timing.lag_app_s
+        mean = float(means.mean())
+        variance = float(np.mean(timing.lag_app_s**2) + np.mean(means**2) - mean**2)
+        lag = min(float(np.sqrt(max(variance, 0.0))), mean)
+        return mean - lag, lag
 
     def sizes(self, params: np.ndarray) -> tuple[int, int]:
         """Floats of state (step index, one fraction per group) and of command history."""
@@ -250,28 +397,22 @@ class BrakePipeBrake:
         if not (np.isfinite(train_length_m) and train_length_m > 0):
             raise ConfigError("train.length_m", train_length_m, "a finite number > 0")
         n = self.n_segments
-        x = segment_positions_m(train_length_m, n)
-        delay_app = self.reaction_s + x / self.application_wave_mps
-        delay_rel = self.reaction_s + x / self.release_wave_mps
-        longest = float(max(delay_app[-1], delay_rel[-1]))
+        timing = self.group_timing(train_length_m)
+        longest = float(max(timing.delay_app_s.max(), timing.delay_rel_s.max()))
         if longest / dt > MAX_DELAY_STEPS:
             raise ConfigError(
                 "sim.dt_s",
                 dt,
-                f"at least {longest / MAX_DELAY_STEPS:.3g} s: the slowest wave takes "
-                f"{longest:.3g} s to the rear and the delay line has at most "
-                f"{MAX_DELAY_STEPS:,} steps",
+                f"at least {longest / MAX_DELAY_STEPS:.3g} s: the longest dead time is "
+                f"{longest:.3g} s and the delay line has at most {MAX_DELAY_STEPS:,} steps",
             )
-        lag_app = application_lag_s(self.application_s)
-        lag_rel = release_lag_s(self.release_s)
         p = np.zeros(P_SEG0 + n * SEG_STRIDE)
         p[P_N_SEG] = n
         p[P_A_MAX] = self.max_decel_mps2
-        p[P_APPLY_FASTER] = 1.0 if self.application_wave_mps >= self.release_wave_mps else 0.0
         n_max = 0
         for j in range(n):
-            n_a, f_a = _whole_and_fraction(delay_app[j] / dt)
-            n_r, f_r = _whole_and_fraction(delay_rel[j] / dt)
+            n_a, f_a = _whole_and_fraction(timing.delay_app_s[j] / dt)
+            n_r, f_r = _whole_and_fraction(timing.delay_rel_s[j] / dt)
             n_max = max(n_max, n_a, n_r)
             first, second = min(f_a, f_r), max(f_a, f_r)
             parts = (first * dt, (second - first) * dt, (1.0 - second) * dt)
@@ -281,8 +422,9 @@ class BrakePipeBrake:
             p[b + SEG_APP_FIRST] = 1.0 if f_a <= f_r else 0.0
             p[b + SEG_SHARE] = 1.0 / n
             for i, h in enumerate(parts):
-                p[b + SEG_ALPHA1_APP + 2 * i] = np.exp(-h / lag_app)
-                p[b + SEG_ALPHA1_REL + 2 * i] = np.exp(-h / lag_rel)
+                p[b + SEG_ALPHA1_APP + 2 * i] = np.exp(-h / timing.lag_app_s[j])
+                p[b + SEG_ALPHA1_REL + 2 * i] = np.exp(-h / timing.lag_rel_s[j])
+            p[b + SEG_APPLY_FIRST] = 1.0 if timing.delay_app_s[j] <= timing.delay_rel_s[j] else 0.0
         # the oldest command read is n + 1 steps back, and the newest is written first
         p[P_BUF_LEN] = n_max + 2
         return p
@@ -336,7 +478,6 @@ def brake_pipe_ato_step(
     k = int(state[ST_K])  # the ring's write slot
     buffer[k] = uc
     state[ST_K] = ring_next(k, length)
-    apply_faster = p[P_APPLY_FASTER] > 0.0
     total = 0.0
     for j in range(int(p[P_N_SEG])):
         b = P_SEG0 + j * SEG_STRIDE
@@ -346,6 +487,7 @@ def brake_pipe_ato_step(
         app_new = buffer[ring_back(k, n_a, length)]
         rel_old = buffer[ring_back(k, n_r + 1, length)]
         rel_new = buffer[ring_back(k, n_r, length)]
+        apply_faster = p[b + SEG_APPLY_FIRST] > 0.0
         y = state[ST_Y0 + j]
         # before either delayed command switches within this step
         target = _received(app_old, rel_old, apply_faster)
@@ -368,39 +510,34 @@ def brake_pipe_ato_step(
 
 
 def segment_pressure_fraction(
+    brake: BrakePipeBrake,
     t_s: Num,
-    x_m: Num,
+    train_length_m: float,
     *,
     to_fraction: float = 1.0,
     from_fraction: float = 0.0,
-    application_time_s: float = NOMINAL_TIMES_S["G"][0],
-    release_time_s: float = NOMINAL_TIMES_S["G"][1],
-    application_wave_mps: float = APPLICATION_WAVE_MPS,
-    release_wave_mps: float = RELEASE_WAVE_MPS,
-    reaction_s: float = 0.0,
 ) -> np.ndarray:
-    """Brake-pipe model: cylinder fraction [-] at ``x_m`` [m] at ``t_s`` [s] after a step.
+    """Each group's cylinder fraction [-] at ``t_s`` [s] after a step of the command.
 
     The command steps from ``from_fraction`` (held long enough to be steady) to
-    ``to_fraction`` at ``t = 0``. Broadcasts over ``t_s`` and ``x_m``.
+    ``to_fraction`` at ``t = 0``, on a train ``train_length_m`` [m] long. Returns shape
+    ``t_s.shape + (n_segments,)``.
 
     Notes
     -----
-    An application (``to > from``) reaches ``x`` after ``d = t_r + x / c_a`` and fills with
-    ``T_a = t_app / ln 20``; a release after ``t_r + x / c_r`` with ``T_r = t_rel /
-    ln(3.8 / 0.4)``::
+    An application (``to > from``) reaches group ``j`` after its dead time ``d = d_a,j``
+    and fills with its lag ``T = T_a,j``; a release uses ``d_r,j`` and ``T_r,j``
+    (:meth:`BrakePipeBrake.group_timing`)::
 
-        y(t, x) = from                                              for t < d
-        y(t, x) = to + (from - to) exp(-(t - d) / T)                for t >= d
+        y(t) = from                                          for t < d
+        y(t) = to + (from - to) exp(-(t - d) / T)            for t >= d
     """
-    t = np.asarray(t_s, dtype=float)
-    x = np.asarray(x_m, dtype=float)
+    timing = brake.group_timing(train_length_m)
+    t = np.asarray(t_s, dtype=float)[..., np.newaxis]
     if to_fraction >= from_fraction:
-        delay = reaction_s + x / application_wave_mps
-        lag = application_lag_s(application_time_s)
+        delay, lag = timing.delay_app_s, timing.lag_app_s
     else:
-        delay = reaction_s + x / release_wave_mps
-        lag = release_lag_s(release_time_s)
+        delay, lag = timing.delay_rel_s, timing.lag_rel_s
     elapsed = t - delay
     decay = np.exp(-np.maximum(elapsed, 0.0) / lag)
     return np.where(
@@ -408,136 +545,105 @@ def segment_pressure_fraction(
     )
 
 
-def train_force_fraction(
-    t_s: Num,
-    train_length_m: float,
-    *,
-    n_segments: int | None = 40,
-    application_time_s: float = NOMINAL_TIMES_S["G"][0],
-    wave_speed_mps: float = APPLICATION_WAVE_MPS,
-    reaction_s: float = 0.0,
-) -> np.ndarray:
-    """Brake-pipe model: the train's air force [fraction of full service] after a full step.
+def train_force_fraction(brake: BrakePipeBrake, t_s: Num, train_length_m: float) -> np.ndarray:
+    """The train's air force [fraction of full service] ``t_s`` [s] after a full step.
 
-    ``n_segments`` groups at :func:`segment_positions_m`, equal shares; ``None`` = the
-    continuous limit (brake force spread evenly along the train). Vectorised over ``t_s``.
-
-    Notes
-    -----
-    The mean of the groups' step responses. In the continuous limit, with ``D = L / c``,
-    ``s = t - t_r`` and ``T = T_a``::
-
-        F(s) = 0                                               s < 0
-        F(s) = (s - T (1 - exp(-s / T))) / D                   0 <= s < D
-        F(s) = 1 - T exp(-s / T) (exp(D / T) - 1) / D          s >= D
+    The mean of the groups' step responses (:func:`segment_pressure_fraction`), which
+    carry equal shares. Vectorised over ``t_s``.
     """
-    t = np.asarray(t_s, dtype=float)
-    lag = application_lag_s(application_time_s)
-    if n_segments is not None:
-        x = segment_positions_m(train_length_m, n_segments)
-        y = segment_pressure_fraction(
-            t[..., np.newaxis],
-            x,
-            application_time_s=application_time_s,
-            application_wave_mps=wave_speed_mps,
-            reaction_s=reaction_s,
-        )
-        return np.asarray(y.mean(axis=-1))
-    span = float(train_length_m) / wave_speed_mps
-    s = t - reaction_s
-    s_pos = np.maximum(s, 0.0)
-    ramp = (s_pos - lag * (1.0 - np.exp(-s_pos / lag))) / span
-    # exp(-(s - D)/T) - exp(-s/T), written so neither factor overflows
-    tail = 1.0 - lag * np.exp(-np.maximum(s - span, 0.0) / lag) * (-np.expm1(-span / lag)) / span
-    return np.where(s < 0.0, 0.0, np.where(s < span, ramp, tail))
+    return np.asarray(segment_pressure_fraction(brake, t_s, train_length_m).mean(axis=-1))
 
 
 def build_up_time_s(
-    train_length_m: Num,
-    *,
-    fraction: float = APPLIED_FRACTION,
-    n_segments: int | None = 40,
-    application_time_s: float = NOMINAL_TIMES_S["G"][0],
-    wave_speed_mps: float = APPLICATION_WAVE_MPS,
-    reaction_s: float = 0.0,
+    brake: BrakePipeBrake, train_length_m: Num, *, fraction: float = APPLIED_FRACTION
 ) -> np.ndarray:
-    """Brake-pipe model: time [s] for the train's air force to reach ``fraction`` (95 %).
+    """Time [s] for the train's air force to reach ``fraction`` (95 %) after a full step.
 
-    After a full-service step at ``t = 0``; vectorised over ``train_length_m`` [m]. The
-    quantity SUBSET-026 calls ``t2``, the end of ``T_brake_increase`` (3.13.2.2.3.2.3).
+    Vectorised over ``train_length_m`` [m]. The quantity SUBSET-026 calls ``t2``, the end
+    of ``T_brake_increase`` (3.13.2.2.3.2.3).
 
     Notes
     -----
     The root of ``train_force_fraction(t) = fraction`` (scipy.optimize.brentq); the force is
-    continuous and strictly increasing after ``t_r``, 0 before, and reaches ``fraction`` by
-    ``t_r + L / c + T_a ln(1 / (1 - fraction))`` (every group by then).
+    continuous and non-decreasing, 0 before the first dead time, and reaches ``fraction``
+    by the time every group has (``max_j d_j + T_j ln(1 / (1 - fraction))``).
     """
     if not 0.0 < fraction < 1.0:
         raise ConfigError("fraction", fraction, "a number in (0, 1)")
     lengths = np.asarray(train_length_m, dtype=float)
     out = np.empty(lengths.shape)
-    for index, length in np.ndenumerate(lengths):
-        out[index] = _time_to_fraction(
-            float(length),
-            fraction,
-            n_segments=n_segments,
-            application_time_s=application_time_s,
-            wave_speed_mps=wave_speed_mps,
-            reaction_s=reaction_s,
-        )
+    for index, value in np.ndenumerate(lengths):
+        train_m_here: float = float(value)
+        timing = brake.group_timing(train_m_here)
+
+        def short_of(t: float, train_m: float = train_m_here) -> float:
+            return float(train_force_fraction(brake, t, train_m)) - fraction
+
+        lower = float(timing.delay_app_s.min())
+        upper = float(np.max(timing.delay_app_s - timing.lag_app_s * np.log(1.0 - fraction)))
+        out[index] = brentq(short_of, lower, upper + 1e-9, xtol=1e-12, rtol=1e-14)
     return out
 
 
-def _time_to_fraction(
-    train_length_m: float,
-    fraction: float,
-    *,
-    n_segments: int | None,
-    application_time_s: float,
-    wave_speed_mps: float,
-    reaction_s: float,
-) -> float:
-    """The root of ``train_force_fraction(t) = fraction`` for one train (build_up_time_s)."""
-
-    def short_of(t: float) -> float:
-        force = train_force_fraction(
-            t,
-            train_length_m,
-            n_segments=n_segments,
-            application_time_s=application_time_s,
-            wave_speed_mps=wave_speed_mps,
-            reaction_s=reaction_s,
-        )
-        return float(force) - fraction
-
-    lag = application_lag_s(application_time_s)
-    upper = reaction_s + train_length_m / wave_speed_mps + lag * np.log(1.0 / (1.0 - fraction))
-    return float(brentq(short_of, reaction_s, upper + 1e-9, xtol=1e-12, rtol=1e-14))
-
-
-def equivalent_build_up_time_s(
-    train_length_m: Num,
-    *,
-    application_time_s: float = NOMINAL_TIMES_S["G"][0],
-    wave_speed_mps: float = APPLICATION_WAVE_MPS,
-    reaction_s: float = 0.0,
-) -> np.ndarray:
-    """Brake-pipe model: equivalent brake build-up time [s] of a full-service step.
+def equivalent_build_up_time_s(brake: BrakePipeBrake, train_length_m: Num) -> np.ndarray:
+    """Equivalent build-up time [s] of a full-service step on a train ``train_length_m`` [m].
 
     ``T_e = integral_0^inf (1 - F(t)) dt``: the dead time after which full force would give
     the same speed loss as the real build-up ``F``. SUBSET-026 3.13.2.2.3.2.4 defines its
     ``T_brake_build_up = T_brake_react + T_brake_increase / 2``, which is this integral for
-    its ramp model. Vectorised over ``train_length_m`` [m].
+    its ramp model. Vectorised over ``train_length_m``.
 
     Notes
     -----
-    The integral of a delayed first-order step is ``d + T``; averaged over groups spread
-    evenly from 0 to ``L`` (any number of them, or the continuous limit)::
+    The integral of a delayed first-order step is its dead time plus its lag, which each
+    group's timing makes ``M_j = t_r + x_j / c_a + W(x_j) + T_a``; ``T_e`` is their mean,
+    with ``x_j = j L / (n - 1)``::
 
-        T_e = t_r + L / (2 c_a) + T_a,    T_a = t_app / ln 20
+        T_e = t_r + L / (2 c_a) + T_a + L / G + (L^2 / (2 D)) (1 - (2 n - 1) / (6 (n - 1)))
+
+    (``L^2 / (3 D)`` for the last term as ``n -> inf``), computed here as the mean of the
+    ``M_j`` themselves.
     """
-    length = np.asarray(train_length_m, dtype=float)
-    return reaction_s + length / (2.0 * wave_speed_mps) + application_lag_s(application_time_s)
+    lengths = np.asarray(train_length_m, dtype=float)
+    out = np.empty(lengths.shape)
+    for index, length in np.ndenumerate(lengths):
+        timing = brake.group_timing(float(length))
+        out[index] = float(np.mean(timing.delay_app_s + timing.lag_app_s))
+    return out
+
+
+def calibrate_pipe_to_etcs(
+    brake: BrakePipeBrake | None = None,
+    lengths_m: tuple[float, float] = CALIBRATION_LENGTHS_M,
+) -> tuple[float, float]:
+    """``(valve_flow_mps, pipe_diffusivity_m2ps)`` that fit the ETCS service build-up time.
+
+    Solves for the pipe constants ``G`` [m/s] and ``D`` [m^2/s] with which ``brake`` (the
+    default G brake when None; its own pipe constants are ignored) has the ETCS conversion
+    model's full-service equivalent build-up time (:func:`etcs_build_up_time_s`, in the
+    brake's position) at the two ``lengths_m`` [m].
+
+    Notes
+    -----
+    ``T_e`` is linear in ``a = 1 / G`` and ``b = 1 / D``: ``T_e(L) = T_0(L) + a L + b
+    mean_j(x_j (2 L - x_j)) / 2`` with ``T_0`` the ideal pipe's. Two lengths give a 2 x 2
+    linear system (numpy.linalg.solve).
+    """
+    from dataclasses import replace
+
+    base = replace(brake or BrakePipeBrake(), valve_flow_mps=np.inf, pipe_diffusivity_m2ps=np.inf)
+    rows, rhs = [], []
+    for length in lengths_m:
+        x = segment_positions_m(length, base.n_segments)
+        rows.append([length, float(np.mean(x * (2.0 * length - x))) / 2.0])
+        published = float(etcs_build_up_time_s(length, base.position, "service"))
+        rhs.append(published - float(equivalent_build_up_time_s(base, length)))
+    a, b = np.linalg.solve(np.array(rows), np.array(rhs))
+    if a <= 0 or b <= 0:
+        raise ConfigError(
+            "lengths_m", lengths_m, "lengths at which the ETCS time exceeds the ideal pipe's"
+        )
+    return 1.0 / float(a), 1.0 / float(b)
 
 
 # --- the published reference: ETCS conversion model ----------------------------------------
