@@ -39,9 +39,7 @@ def heavy_haul_section():  # type: ignore[no-untyped-def]
         davis_a2=0.000125,
         max_service_decel_mps2=0.5,
     )
-    line = Line(
-        gradients=(Segment(10_000.0, 18_000.0, -12.0), Segment(25_000.0, 31_000.0, 4.0))
-    )
+    line = Line(gradients=(Segment(10_000.0, 18_000.0, -12.0), Segment(25_000.0, 31_000.0, 4.0)))
     ceiling = (
         np.array([0.0, 34_000.0, 36_000.0, LENGTH_M]),
         np.array([kmh_to_mps(80.0), kmh_to_mps(45.0), kmh_to_mps(80.0)]),

@@ -171,14 +171,7 @@ class LagDelay:
                 raise ConfigError(
                     "delay_s", delay_s, f"at most {MAX_DELAY_STEPS:,} steps of dt = {dt} s"
                 )
-            n = int(np.floor(steps + 1e-9))
-            frac = max(steps - n, 0.0) if abs(steps - round(steps)) > 1e-9 else 0.0
-            self.params = np.zeros(5)
-            self.params[E_N] = n
-            self.params[E_FRAC] = frac
-            self.params[E_LEN] = n + 2
-            self.params[E_ALPHA_F] = _decay(frac * self.dt, self.lag_s)
-            self.params[E_ALPHA_REST] = _decay((1.0 - frac) * self.dt, self.lag_s)
+            self.params = exact_params(np.array([self.lag_s]), np.array([self.delay_s]), self.dt)[0]
         else:
             self._build_pade()
         self.reset()
@@ -229,11 +222,32 @@ class LagDelay:
         return np.array([self.step(u) for u in np.asarray(commands, dtype=float)])
 
 
-def _decay(h: float, lag_s: float) -> float:
-    """``exp(-h / lag)``: how much of the old output survives ``h`` seconds."""
-    if lag_s == 0.0:
-        return 0.0
-    return float(np.exp(-h / lag_s))
+def exact_params(lag_s: np.ndarray, delay_s: np.ndarray, dt: float) -> np.ndarray:
+    """The exact kernel's params (``E_*``), one row per ``(lag, delay)`` pair [s].
+
+    The delay is ``n`` whole steps plus a fraction ``f`` of one (a fraction within 1e-9
+    of a whole step is none); ``E_ALPHA_F = exp(-f dt / lag)``, ``E_ALPHA_REST =
+    exp(-(1 - f) dt / lag)`` (0 for no lag). Vectorised: a Monte Carlo packs a whole
+    chunk of sampled brakes at once (:meth:`LagDelayBrake.pack_many`), a single
+    :class:`LagDelay` a chunk of one, so both get the same numbers.
+    """
+    lag_s = np.asarray(lag_s, dtype=float)
+    steps = np.asarray(delay_s, dtype=float) / dt
+    n = np.floor(steps + 1e-9)
+    frac = np.where(np.abs(steps - np.round(steps)) > 1e-9, np.maximum(steps - n, 0.0), 0.0)
+    params = np.zeros((steps.shape[0], 5))
+    params[:, E_N] = n
+    params[:, E_FRAC] = frac
+    params[:, E_LEN] = n + 2
+    params[:, E_ALPHA_F] = _decay(frac * dt, lag_s)
+    params[:, E_ALPHA_REST] = _decay((1.0 - frac) * dt, lag_s)
+    return params
+
+
+def _decay(h: np.ndarray, lag_s: np.ndarray) -> np.ndarray:
+    """``exp(-h / lag)``: how much of the old output survives ``h`` seconds (0 for no lag)."""
+    no_lag = lag_s == 0.0
+    return np.where(no_lag, 0.0, np.exp(-h / np.where(no_lag, 1.0, lag_s)))
 
 
 def step_response_analytic(t: np.ndarray, lag_s: float, delay_s: float) -> np.ndarray:

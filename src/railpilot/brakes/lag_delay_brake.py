@@ -15,7 +15,13 @@ import numpy as np
 from numba import njit
 
 from railpilot.brakes.base import PackContext
-from railpilot.brakes.lag_delay import E_LEN, LagDelay, lag_delay_exact_step
+from railpilot.brakes.lag_delay import (
+    E_LEN,
+    MAX_DELAY_STEPS,
+    LagDelay,
+    exact_params,
+    lag_delay_exact_step,
+)
 from railpilot.errors import ConfigError
 
 #: longest lag or delay a brake model accepts [s]
@@ -76,6 +82,41 @@ class LagDelayBrake:
             )
         params = LagDelay(self.lag_s, self.delay_s, dt).params
         return np.append(params, self.max_decel_mps2)
+
+    def pack_many(
+        self,
+        context: PackContext,
+        changes: dict[str, np.ndarray],
+        runs: int,
+        load_weighed_eff_mass_kg: np.ndarray,
+    ) -> tuple[np.ndarray, np.ndarray] | None:
+        """Params and sizes of ``runs`` copies of this brake with sampled fields, at once.
+
+        ``changes``: field name -> one value per run (a Monte Carlo's sampled brakes;
+        sim/inputs.batch_inputs); ``load_weighed_eff_mass_kg``: each run's (this brake
+        does not use it). Row ``i`` is exactly what :meth:`pack` and :meth:`sizes`
+        give the brake with run ``i``'s values; None if a value is one :meth:`pack` would
+        refuse (the caller then builds run by run, to raise the error that names it).
+        """
+        if set(changes) - {"lag_s", "delay_s"}:
+            return None
+        dt = context.dt_s
+        lag = np.broadcast_to(np.asarray(changes.get("lag_s", self.lag_s), dtype=float), (runs,))
+        delay = np.broadcast_to(
+            np.asarray(changes.get("delay_s", self.delay_s), dtype=float), (runs,)
+        )
+        for value in (lag, delay):
+            if not (np.all(np.isfinite(value)) and np.all((value >= 0) & (value <= MAX_TIME_S))):
+                return None
+        if np.any((delay > 0) & (delay < dt)) or np.any(delay / dt > MAX_DELAY_STEPS):
+            return None
+        params = np.empty((runs, LD_A_MAX + 1))
+        params[:, :LD_A_MAX] = exact_params(lag, delay, dt)
+        params[:, LD_A_MAX] = self.max_decel_mps2
+        sizes = np.empty((runs, 2), dtype=np.int64)
+        sizes[:, 0] = 2
+        sizes[:, 1] = params[:, E_LEN].astype(np.int64)
+        return params, sizes
 
 
 @njit(cache=True)

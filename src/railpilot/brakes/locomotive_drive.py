@@ -143,6 +143,16 @@ class LocomotiveDrive:
         """
         return float(self.locomotive.traction.max_force_n / train.effective_mass_kg)
 
+    def max_traction_power_accel_w_per_kg(self, train: Train) -> float:
+        """Traction power per effective mass [W/kg]: the envelope's constant-power part.
+
+        ``P_T / (m (1 + gamma))``: divided by the speed it is the largest traction
+        acceleration above the base speed, so the ATO's clamp can follow the envelope
+        (``u_max(v) = min(F_T0, P_T / v) / m_eff``) and its controller's anti-windup sees
+        the saturation the drive really has.
+        """
+        return float(self.locomotive.traction.max_power_w / train.effective_mass_kg)
+
     def sizes(self, params: np.ndarray) -> tuple[int, int]:
         """Floats of state (the electric force, then the air brake's) and of history."""
         params = np.asarray(params, dtype=float)

@@ -37,7 +37,7 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
     [disturbance]  constant_kn, random_std_kn, random_hold_s, target_fraction, seed,
              regions = [{start_km, end_km, force_kn | accel_mps2}]
     [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s,
-             reference = "time" | "distance", gradient_feedforward
+             reference = "time" | "distance", gradient_feedforward, preview_s
     [controller]  name = "pid" | "smarc" | "qsmc" | "module:Name" (your own,
              control/user.py); [controller.NAME] a built-in's parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
@@ -528,6 +528,7 @@ def _ato(t: _Table) -> ATOModel:
     t.put(kw, "brake_lag_s", "brake_lag_s")
     t.put(kw, "reference", "reference", read="string")
     t.put(kw, "gradient_feedforward", "gradient_feedforward", read="flag")
+    t.put(kw, "preview_s", "preview_s")
     davis = t.numbers("davis", 3)
     if davis is not None:
         kw["davis"] = davis

@@ -49,6 +49,11 @@ class ATOModel:
         The ATO adds the line's gradient and curve resistance (averaged over the train's
         length, at the measured position) to its resistance feed-forward, as an ATO that
         knows the line's profile does. Off in the papers' world (they model none).
+    preview_s
+        Look-ahead [s]: the ATO takes the distance-based curve and the line's gradients
+        (with ``gradient_feedforward``) at ``x + v preview_s`` instead of at the measured
+        position ``x``, to lead a brake that takes that long to act (a long train's air
+        brake). 0 (default): no look-ahead.
     """
 
     mass_kg: float | None = None
@@ -57,6 +62,7 @@ class ATOModel:
     brake_lag_s: float | None = None
     reference: str = "time"
     gradient_feedforward: bool = False
+    preview_s: float = 0.0
 
     def __post_init__(self) -> None:
         if self.mass_kg is not None and not (np.isfinite(self.mass_kg) and self.mass_kg > 0):
@@ -67,6 +73,13 @@ class ATOModel:
             value = getattr(self, name)
             if value is not None and not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"ato.{name}", value, "a finite number >= 0 [s]")
+        if not (
+            isinstance(self.preview_s, int | float)
+            and not isinstance(self.preview_s, bool)
+            and np.isfinite(self.preview_s)
+            and 0 <= self.preview_s <= 600
+        ):
+            raise ConfigError("ato.preview_s", self.preview_s, "a number in [0, 600] s")
         if self.davis is not None and not all(np.isfinite(c) and c >= 0 for c in self.davis):
             raise ConfigError("ato.davis", self.davis, "three finite numbers >= 0")
 

@@ -8,7 +8,7 @@ the random disturbance and the speed noise.
 
 Runs go in chunks through one Numba kernel that releases the GIL, a slice of the chunk
 per local core on its own thread (the same loop as a single run, on the same
-description: sim/layout.py); only each run's scalar metrics are kept (15 floats a run),
+description: sim/layout.py); only each run's scalar metrics are kept (18 floats a run),
 never its time series, so memory stays flat however many runs. With a Dask scheduler
 address the chunks run on a ``dask.distributed`` cluster instead; every run's
 parameters and seed depend only on the spec's seed and the run's index, so a local
@@ -34,7 +34,13 @@ from railpilot.brakes.registry import brake_entry_of
 from railpilot.control.user import Binding, bind
 from railpilot.errors import ConfigError
 from railpilot.sim import engine
-from railpilot.sim.inputs import ato_brake_model, line_inputs, reference_inputs, run_inputs
+from railpilot.sim.inputs import (
+    ato_brake_model,
+    batch_inputs,
+    line_inputs,
+    reference_inputs,
+    run_inputs,
+)
 from railpilot.sim.layout import ReferenceIn, RunInputs, batch_row, stack_runs
 from railpilot.sim.run import metrics_dict, resolve_controller
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
@@ -238,7 +244,33 @@ def _chunk_inputs(
     start: int,
     stop: int,
 ) -> RunInputs:
-    """The batch of runs ``start..stop``: each run's own description, stacked."""
+    """The batch of runs ``start..stop``: built for all runs at once
+    (:func:`~railpilot.sim.inputs.batch_inputs`), or run by run where that cannot be
+    done (:func:`_chunk_inputs_per_run`); both give the same arrays."""
+    line = line_inputs(nominal)  # no sampled parameter changes the line
+    batch = batch_inputs(
+        nominal,
+        binding,
+        {k: v[start:stop] for k, v in values.items()},
+        seeds[start:stop],
+        reference=reference,
+        line=line,
+    )
+    if batch is not None:
+        return batch
+    return _chunk_inputs_per_run(nominal, binding, reference, values, seeds, start, stop)
+
+
+def _chunk_inputs_per_run(
+    nominal: Scenario,
+    binding: Binding,
+    reference: ReferenceIn,
+    values: dict[str, np.ndarray],
+    seeds: np.ndarray,
+    start: int,
+    stop: int,
+) -> RunInputs:
+    """The batch of runs ``start..stop``: each run's own scenario and description, stacked."""
     line = line_inputs(nominal)  # no sampled parameter changes the line
     return stack_runs(
         [

@@ -10,6 +10,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from railpilot.errors import ConfigError
 
@@ -100,14 +101,56 @@ class Disturbance:
         if self.random_std_n == 0.0 and self.target_fraction == 0.0:
             return np.zeros(0)
         hold = max(round(self.random_hold_s / dt), 1)
+        if self.target_fraction > 0.0 and len(target_accel_mps2) < n_steps:
+            raise ValueError(
+                f"target_accel_mps2 has {len(target_accel_mps2)} values: expected one per "
+                f"step, {n_steps}"
+            )
         rng = np.random.default_rng(self.seed if seed is None else seed)
         n_values = n_steps // hold + 1
-        force = np.zeros(n_steps)
+        normal = np.zeros((1, n_values))
+        factor = np.zeros((1, n_values))
         if self.random_std_n > 0.0:
-            force += np.repeat(rng.normal(0.0, self.random_std_n, n_values), hold)[:n_steps]
+            normal[0] = rng.normal(0.0, self.random_std_n, n_values)
         if self.target_fraction > 0.0:
-            factor = rng.uniform(-self.target_fraction, self.target_fraction, n_values)
-            force += (
-                np.repeat(factor, hold)[:n_steps] * target_accel_mps2[:n_steps] * effective_mass_kg
-            )
-        return force
+            factor[0] = rng.uniform(-self.target_fraction, self.target_fraction, n_values)
+        force = np.empty((1, n_steps))
+        spread_held_values(
+            normal,
+            factor,
+            hold,
+            self.random_std_n > 0.0,
+            self.target_fraction > 0.0,
+            np.ascontiguousarray(target_accel_mps2[:n_steps], dtype=float),
+            np.array([float(effective_mass_kg)]),
+            force,
+        )
+        return force[0]
+
+
+@njit(cache=True)
+def spread_held_values(
+    normal: np.ndarray,
+    factor: np.ndarray,
+    hold: int,
+    use_normal: bool,
+    use_factor: bool,
+    target: np.ndarray,
+    mass: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """``out[i, k] = 0 + normal[i, k // hold] + factor[i, k // hold] * target[k] * mass[i]``
+    (each term only if used): the random force of run ``i``, its held values spread over the
+    steps. One implementation for a single run (:meth:`Disturbance.random_series`) and a
+    Monte Carlo chunk (sim/inputs.py ``random_series_many``); a loop instead of NumPy's
+    repeat and products, whose temporaries of a chunk's size cost more than the arithmetic."""
+    for i in range(out.shape[0]):
+        m = mass[i]
+        for k in range(out.shape[1]):
+            j = k // hold
+            f = 0.0
+            if use_normal:
+                f += normal[i, j]
+            if use_factor:
+                f += factor[i, j] * target[k] * m
+            out[i, k] = f

@@ -40,9 +40,11 @@ from railpilot.sim.layout import (
     A_GRADE_FF,
     A_MASS,
     A_MEFF_LW,
+    A_PREVIEW,
     A_STOP_M,
     A_UMAX,
     A_UMIN,
+    A_UPOWER,
     A_V_CO,
     B_N_BUFFER,
     B_N_STATE,
@@ -65,8 +67,14 @@ from railpilot.sim.layout import (
     RunInputs,
 )
 from railpilot.units import G_MPS2, KMH_PER_MPS
-from railpilot.vehicle.profile import mean_specific_resistance
-from railpilot.vehicle.resistance import davis_specific_resistance
+from railpilot.vehicle import profile, resistance
+
+# The two resistance laws the loop evaluates every step, compiled from their one source
+# (vehicle/profile.py, vehicle/resistance.py) to be inlined into the loop: a call to a
+# separately compiled function passes its arrays with reference counting on every step,
+# which cost a third of the loop's time. The arithmetic is the same, so are the results.
+mean_specific_resistance = njit(inline="always")(profile.mean_specific_resistance.py_func)
+davis_specific_resistance = njit(inline="always")(resistance._davis_specific_resistance)
 
 # metrics
 (
@@ -87,14 +95,15 @@ from railpilot.vehicle.resistance import davis_specific_resistance
     M_SLIDE_T,
     M_E_TRACTION,
     M_MAX_SPEED,
-) = range(17)
-N_METRICS = 17
+    M_STEPS,
+) = range(18)
+N_METRICS = 18
 N_CHANNELS = 12
 
 G = G_MPS2  # the one value of g (units.py)
 
 
-@njit(cache=True)
+@njit(inline="always")
 def _disturbance(
     x: float,
     k: int,
@@ -134,7 +143,10 @@ def run_kernel(
     dt = inp.sim.dt
     control_every = inp.sim.control_every
     train = inp.train.p
-    brake_p = inp.brake.p
+    # a private copy too: the compiled steps get their arrays with reference counts, and a
+    # count shared with the other threads of a batch (a row of the batch's array) is
+    # contended on every step
+    brake_p = inp.brake.p.copy()
     line_edges = inp.line.edges
     line_values = inp.line.values
     line_cumulative = inp.line.cumulative
@@ -189,6 +201,31 @@ def run_kernel(
     adhesion_n = real[R_ADHESION] * mass * G
     notches = real[R_NOTCHES]
     by_distance = dist_ref.shape[1] > 0
+    # constants of the run, read once (the loop below is the hot path of a Monte Carlo)
+    brake_gain = train[T_BRAKE_GAIN]
+    wheel_factor = 1.0 + real[R_WHEEL_SCALE]
+    slide_keep = 1.0 - real[R_SLIDE_SLIP]
+    slide_ratio = real[R_SLIDE_RATIO]
+    speed_res = real[R_SPEED_RES]
+    u_min = ato[A_UMIN]
+    u_max = ato[A_UMAX]
+    v_co = ato[A_V_CO]
+    grade_ff = ato[A_GRADE_FF] > 0.0
+    preview_s = ato[A_PREVIEW]
+    upower = ato[A_UPOWER]
+    ato_a0 = ato[A_A0]
+    ato_a1 = ato[A_A1]
+    ato_a2 = ato[A_A2]
+    ato_mass = ato[A_MASS]
+    m_eff_lw = ato[A_MEFF_LW]
+    a0 = train[T_A0]
+    a1 = train[T_A1]
+    a2 = train[T_A2]
+    const_n = dist.p[D_CONST_N]
+    # a Monte Carlo run (nothing recorded) ends at the stop: nothing that follows changes
+    # a metric (the train is at rest and never moves again)
+    stop_at_rest = n_rec == 0
+    steps_run = 0
     # counters instead of k % period (an integer modulo every step is slow)
     next_update = 0
     n_updates = 0
@@ -215,13 +252,22 @@ def run_kernel(
                 max_xerr = xerr
             sum_verr2 += verr * verr
             n_moving += 1
-            if np.isnan(verr_co) and v <= ato[A_V_CO]:
+            if np.isnan(verr_co) and v <= v_co:
                 verr_co = abs(verr)
         # --- controller (ATO cycle), on measured signals
         if k == next_update:
             next_update += control_every
             update_index = n_updates  # k // control_every
             n_updates += 1
+            wheel_v = v * slide_keep if sliding else v
+            v_meas = wheel_v * wheel_factor
+            if speed_noise.shape[0] > 0:
+                v_meas += speed_noise[update_index]
+            if speed_res > 0.0:
+                v_meas = np.round(v_meas / speed_res) * speed_res
+            # where the ATO looks: the measured position, or ahead of it by what its
+            # brake takes to act (ato.preview_s)
+            x_look = x_odo + abs(v_meas) * preview_s if preview_s > 0.0 else x_odo
             if by_distance:
                 # re-planned on distance to go: where the train is, not where it was due
                 rx = x_odo
@@ -231,22 +277,20 @@ def run_kernel(
                 rx = ref_x[k]
                 rv = ref_v[k]
                 raff = ref_a_ff[k]
-            wheel_v = v * (1.0 - real[R_SLIDE_SLIP]) if sliding else v
-            v_meas = wheel_v * (1.0 + real[R_WHEEL_SCALE])
-            if speed_noise.shape[0] > 0:
-                v_meas += speed_noise[update_index]
-            if real[R_SPEED_RES] > 0.0:
-                v_meas = np.round(v_meas / real[R_SPEED_RES]) * real[R_SPEED_RES]
+            # the traction the drive can give at this speed (constant force, then power)
+            u_hi = u_max
+            if u_max > 0.0 and upower < u_max * abs(v_meas):
+                u_hi = upower / abs(v_meas)
             v_kmh_m = abs(v_meas) * KMH_PER_MPS
             # the ATO's own resistance model, as a deceleration [m/s^2]
-            w_model = davis_specific_resistance(v_kmh_m, ato[A_A0], ato[A_A1], ato[A_A2])
-            if ato[A_GRADE_FF] > 0.0:
+            w_model: float = davis_specific_resistance(v_kmh_m, ato_a0, ato_a1, ato_a2)
+            if grade_ff:
                 # an ATO that knows the line adds its gradients and curves where it
-                # believes the train is
+                # believes the train is (or will be: ato.preview_s)
                 w_model += mean_specific_resistance(
-                    line_edges, line_cumulative, line_values, x_odo, length_m, 1.0
+                    line_edges, line_cumulative, line_values, x_look, length_m, 1.0
                 )
-            r_model = w_model * G / 1000.0 * ato[A_MASS] / ato[A_MEFF_LW]
+            r_model = w_model * G / 1000.0 * ato_mass / m_eff_lw
             u = ctrl_step(
                 ctrl_p,
                 ctrl_s,
@@ -256,26 +300,24 @@ def run_kernel(
                 x_odo,
                 v_meas,
                 r_model,
-                ato[A_UMIN],
-                ato[A_UMAX],
+                u_min,
+                u_hi,
                 ctrl_dt,
             )
-            u = min(max(u, ato[A_UMIN]), ato[A_UMAX])
+            u = min(max(u, u_min), u_hi)
             if notches > 0.0:
                 # brake commands in notches: the nearest one to the wanted command
-                step = -ato[A_UMIN] / notches
+                step = -u_min / notches
                 u = np.round(u / step) * step
         # --- brake
-        e_n, air_n, demand = brake_step(
-            brake_p, brake_s, brake_buf, u, v, t, dt, ato[A_MEFF_LW], m_eff
-        )
-        air_n *= train[T_BRAKE_GAIN]
+        e_n, air_n, demand = brake_step(brake_p, brake_s, brake_buf, u, v, t, dt, m_eff_lw, m_eff)
+        air_n *= brake_gain
         if moving:
             brake_n = e_n + air_n
             sliding = False
             if adhesion_n > 0.0 and brake_n > adhesion_n:
                 # slide: the wheel-rail contact gives only part of the peak adhesion
-                scale = adhesion_n * real[R_SLIDE_RATIO] / brake_n
+                scale = adhesion_n * slide_ratio / brake_n
                 e_n *= scale
                 air_n *= scale
                 brake_n = e_n + air_n
@@ -284,7 +326,7 @@ def run_kernel(
             v_kmh = v * KMH_PER_MPS
             resist = (
                 (
-                    davis_specific_resistance(v_kmh, train[T_A0], train[T_A1], train[T_A2])
+                    davis_specific_resistance(v_kmh, a0, a1, a2)
                     + mean_specific_resistance(
                         line_edges, line_cumulative, line_values, x, length_m, 1.0
                     )
@@ -296,7 +338,7 @@ def run_kernel(
             outside = _disturbance(
                 x,
                 k,
-                dist.p[D_CONST_N],
+                const_n,
                 dist.region_start,
                 dist.region_end,
                 dist.region_force,
@@ -332,8 +374,8 @@ def run_kernel(
             # odometry: wheel revolutions times the (mis-)calibrated circumference
             travelled = x - x_before
             if sliding:
-                travelled *= 1.0 - real[R_SLIDE_SLIP]
-            x_odo += travelled * (1.0 + real[R_WHEEL_SCALE])
+                travelled *= slide_keep
+            x_odo += travelled * wheel_factor
             while next_balise < balises.shape[0] and balises[next_balise] <= x:
                 x_odo = balises[next_balise] + (x - balises[next_balise])
                 next_balise += 1
@@ -366,6 +408,9 @@ def run_kernel(
                 record[r, 9] = e_n
                 record[r, 10] = air_n
                 record[r, 11] = x_odo_t
+        steps_run = k + 1
+        if stop_at_rest and not moving:
+            break
     metrics[M_STOP_ERR] = x - ato[A_STOP_M] if not moving else np.nan
     metrics[M_STOP_T] = stop_t
     metrics[M_MAX_VERR] = max_verr
@@ -383,6 +428,7 @@ def run_kernel(
     metrics[M_SLIDE_T] = slide_t
     metrics[M_E_TRACTION] = e_trac
     metrics[M_MAX_SPEED] = v_max
+    metrics[M_STEPS] = steps_run
 
 
 def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:

@@ -31,8 +31,23 @@ T_MEFF, T_MASS, T_A0, T_A1, T_A2, T_X0, T_V0, T_BRAKE_GAIN, T_LENGTH = range(9)
 N_TRAIN = 9
 # ATO: the controllers' side's view of the train. A_UMAX > 0: it may command traction;
 # A_GRADE_FF = 1: its resistance feed-forward includes the line's gradients and curves
-(A_MEFF_LW, A_A0, A_A1, A_A2, A_MASS, A_UMIN, A_UMAX, A_STOP_M, A_V_CO, A_GRADE_FF) = range(10)
-N_ATO = 10
+# A_PREVIEW: look-ahead [s] of the gradient feed-forward; A_UPOWER: traction power per
+# effective mass [W/kg], so the ATO's traction clamp follows the envelope (inf: none)
+(
+    A_MEFF_LW,
+    A_A0,
+    A_A1,
+    A_A2,
+    A_MASS,
+    A_UMIN,
+    A_UMAX,
+    A_STOP_M,
+    A_V_CO,
+    A_GRADE_FF,
+    A_PREVIEW,
+    A_UPOWER,
+) = range(12)
+N_ATO = 12
 # realism (all 0 = the idealised papers' world)
 (R_SPEED_RES, R_WHEEL_SCALE, R_SLIDE_SLIP, R_ADHESION, R_SLIDE_RATIO, R_NOTCHES) = range(6)
 N_REAL = 6
