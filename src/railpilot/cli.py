@@ -25,6 +25,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.montecarlo",
     "railpilot.commands.demo",
     "railpilot.commands.link",
+    "railpilot.commands.drive",
 )
 
 

@@ -14,7 +14,7 @@ from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.control.registry import CONTROLLERS as CONTROLLER_REGISTRY
 from railpilot.errors import ConfigError
 from railpilot.sim.disturbance import Disturbance
-from railpilot.sim.drive_profile import DriveProfile, drive_profile
+from railpilot.sim.drive_profile import DriveProfile, PlannedProfile, drive_profile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
 from railpilot.units import kmh_to_mps
@@ -226,7 +226,9 @@ class Scenario:
     brake: EPBrake | LagDelayBrake | BrakePipeBrake | LocomotiveDrive = field(
         default_factory=EPBrake
     )
-    reference: BrakingCurve | DriveProfile = field(default_factory=paper000_reference)
+    reference: BrakingCurve | DriveProfile | PlannedProfile = field(
+        default_factory=paper000_reference
+    )
     disturbance: Disturbance = field(default_factory=Disturbance)
     ato: ATOModel = field(default_factory=ATOModel)
     controller: ControllerSpec = field(default_factory=ControllerSpec)

@@ -137,20 +137,7 @@ class DriveProfile:
         t = 0; from ``duration_s`` on, at rest at ``stop_m`` with ``a = 0`` (just before
         it the acceleration is ``-decel_mps2``).
         """
-        t = np.asarray(t, dtype=float)
-        tk, xk, vk, ak = self._t, self._x, self._v, self._a
-        n_cells = len(ak)
-        idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, n_cells)
-        at_rest = idx == n_cells
-        cell = np.minimum(idx, n_cells - 1)
-        h = np.clip(t - tk[cell], 0.0, None)
-        a = ak[cell]
-        v = np.maximum(vk[cell] + a * h, 0.0)
-        x = np.minimum(xk[cell] + h * (vk[cell] + v) / 2.0, xk[cell + 1])
-        x = np.where(at_rest, self.stop_m, x)
-        v = np.where(at_rest, 0.0, v)
-        a = np.where(at_rest, 0.0, a)
-        return x, v, a
+        return sample_knots(t, self._t, self._x, self._v, self._a, self.stop_m)
 
     def speed_at_position(self, position_m: np.ndarray) -> np.ndarray:
         """Target speed [m/s] at ``position_m`` [m] (the speed-distance curve), exact.
@@ -280,6 +267,103 @@ class DriveProfile:
                 f"a speed <= {allowed:.6g} m/s (what the cruise speed, the limits and the "
                 "stop allow at reference.start_m)",
             )
+
+
+def sample_knots(
+    t: np.ndarray,
+    tk: np.ndarray,
+    xk: np.ndarray,
+    vk: np.ndarray,
+    ak: np.ndarray,
+    stop_m: float,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(x, v, a)`` at times ``t`` [s] on knots of uniform acceleration per cell.
+
+    ``tk, xk, vk`` the knots' times [s], positions [m] and speeds [m/s], ``ak`` each
+    cell's acceleration [m/s^2]; before the first knot the first state, from the last on
+    at rest at ``stop_m`` (module Notes).
+    """
+    t = np.asarray(t, dtype=float)
+    n_cells = len(ak)
+    idx = np.clip(np.searchsorted(tk, t, side="right") - 1, 0, n_cells)
+    at_rest = idx == n_cells
+    cell = np.minimum(idx, n_cells - 1)
+    h = np.clip(t - tk[cell], 0.0, None)
+    a = ak[cell]
+    v = np.maximum(vk[cell] + a * h, 0.0)
+    x = np.minimum(xk[cell] + h * (vk[cell] + v) / 2.0, xk[cell + 1])
+    x = np.where(at_rest, stop_m, x)
+    v = np.where(at_rest, 0.0, v)
+    a = np.where(at_rest, 0.0, a)
+    return x, v, a
+
+
+@dataclass(frozen=True)
+class PlannedProfile:
+    """A driving reference from a table of speeds by position (the onboard planner's).
+
+    ``x_m`` [m] strictly increasing from the start to the stop point, ``v_mps`` [m/s] the
+    planned speed at each, 0 at the stop (and at the start for a start from rest). Between
+    knots ``v^2`` is linear in ``x`` (uniform acceleration, as the planner's passes
+    compute it), so the time law is exact, as :class:`DriveProfile`'s: the same interface
+    (``sample``, ``duration_s``, ``start_m``, ``stop_m``, ``v0_mps``,
+    ``speed_at_position``), for the simulator's reference builders.
+    """
+
+    x_m: np.ndarray
+    v_mps: np.ndarray
+    min_speed_mps: float = 0.5
+    _t: np.ndarray = field(init=False, repr=False, compare=False)
+    _a: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        x = np.array(self.x_m, dtype=float)
+        v = np.array(self.v_mps, dtype=float)
+        if x.ndim != 1 or x.size < 2 or v.shape != x.shape:
+            raise ConfigError("reference.x_m", x.shape, "two or more positions, one speed each")
+        if not (np.all(np.isfinite(x)) and np.all(np.diff(x) > 0)):
+            raise ConfigError("reference.x_m", self.x_m, "finite, strictly increasing positions")
+        if not (np.all(np.isfinite(v)) and np.all(v >= 0) and v[-1] == 0.0):
+            raise ConfigError("reference.v_mps", self.v_mps, "finite speeds >= 0, 0 at the stop")
+        if np.any((v[:-1] == 0) & (v[1:] == 0)):
+            raise ConfigError("reference.v_mps", self.v_mps, "no cell at rest before the stop")
+        du = np.diff(x)
+        a = np.diff(v * v) / (2.0 * du)
+        t = np.concatenate(([0.0], np.cumsum(2.0 * du / (v[:-1] + v[1:]))))
+        for name, arr in (("x_m", x), ("v_mps", v), ("_t", t), ("_a", a)):
+            arr.setflags(write=False)
+            object.__setattr__(self, name, arr)
+
+    @property
+    def start_m(self) -> float:
+        return float(self.x_m[0])
+
+    @property
+    def stop_m(self) -> float:
+        return float(self.x_m[-1])
+
+    @property
+    def v0_mps(self) -> float:
+        return float(self.v_mps[0])
+
+    @property
+    def duration_s(self) -> float:
+        return float(self._t[-1])
+
+    def sample(self, t: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Reference ``(position [m], speed [m/s], acceleration [m/s^2])`` at times ``t``."""
+        return sample_knots(t, self._t, self.x_m, self.v_mps, self._a, self.stop_m)
+
+    def speed_at_position(self, position_m: np.ndarray) -> np.ndarray:
+        """Planned speed [m/s] at ``position_m`` [m] (``v^2`` linear between knots), floored
+        at ``min_speed_mps`` before the first moving knot so a distance-based controller
+        starts the train; 0 at and beyond the stop."""
+        x = np.asarray(position_m, dtype=float)
+        v2 = np.interp(x, self.x_m, self.v_mps**2)
+        peak = int(np.argmax(self.v_mps))
+        floor = np.where(x < self.x_m[peak], self.min_speed_mps**2, 0.0)
+        v2 = np.where(x >= self.stop_m, 0.0, np.maximum(v2, floor))
+        return np.sqrt(v2)
 
 
 def drive_profile(

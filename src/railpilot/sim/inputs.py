@@ -14,7 +14,7 @@ import numpy as np
 from railpilot.brakes.base import PackContext
 from railpilot.control.user import Binding
 from railpilot.sim.disturbance import spread_held_values
-from railpilot.sim.drive_profile import DriveProfile
+from railpilot.sim.drive_profile import DriveProfile, PlannedProfile
 from railpilot.sim.layout import (
     A_A0,
     A_A1,
@@ -90,7 +90,7 @@ def tuning_model(scenario: Scenario) -> tuple[float, float]:
 
 
 def feed_forward_acceleration(
-    ref: BrakingCurve | DriveProfile, t: np.ndarray, lead_s: float
+    ref: BrakingCurve | DriveProfile | PlannedProfile, t: np.ndarray, lead_s: float
 ) -> np.ndarray:
     """Reference acceleration [m/s^2] to command at ``t`` for a brake ``lead_s`` slow.
 
@@ -106,7 +106,9 @@ def feed_forward_acceleration(
     return np.where(holding, np.minimum(a_ahead, a_final), a_ahead)
 
 
-def distance_table(ref: BrakingCurve | DriveProfile, dt: float, lead_s: float) -> np.ndarray:
+def distance_table(
+    ref: BrakingCurve | DriveProfile | PlannedProfile, dt: float, lead_s: float
+) -> np.ndarray:
     """The braking curve by position: ``[x, v(x), fed-forward a(x)]`` rows, x increasing.
 
     For a distance-based reference the ATO looks these up at the measured position.

@@ -1,0 +1,105 @@
+"""``railpilot drive LINE --train TRAIN --from A --to B``: one station pair under the
+onboard driving system (docs/onboard.md, "railpilot drive")."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from railpilot.commands._common import file_stem, log, print_json
+from railpilot.errors import ConfigError
+from railpilot.units import km_post_to_m, kmh_to_mps
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    from railpilot.onboard.drive import TRAINS
+
+    p = subparsers.add_parser(
+        "drive",
+        help="plan and drive one station pair under the onboard system",
+        description=__doc__,
+    )
+    p.add_argument("line", help="a shipped line ('heavy-haul', 'metro') or a line file")
+    p.add_argument("--train", default="heavy-haul-loaded", choices=sorted(TRAINS))
+    p.add_argument("--from", dest="from_station", type=int, required=True, help="station id")
+    p.add_argument("--to", dest="to_station", type=int, required=True, help="station id")
+    p.add_argument("--running-time", type=float, help="[s]; default: fastest + 10 %%")
+    p.add_argument(
+        "--tsr",
+        action="append",
+        default=[],
+        metavar="START_KM:END_KM:KMH",
+        help="a temporary speed restriction (repeatable)",
+    )
+    p.add_argument(
+        "--target",
+        action="append",
+        default=[],
+        type=float,
+        metavar="KM",
+        help="a signal held at red: a target point (repeatable)",
+    )
+    p.add_argument("--out", type=Path, help="write the figures here")
+    p.add_argument("--json", action="store_true", help="print one JSON object")
+    p.set_defaults(func=run)
+
+
+def parse_tsr(text: str) -> tuple[float, float, float]:
+    """``START_KM:END_KM:KMH`` -> (start [m], end [m], limit [m/s])."""
+    parts = text.split(":")
+    try:
+        start, end, kmh = (float(p) for p in parts)
+    except ValueError:
+        raise ConfigError("--tsr", text, "START_KM:END_KM:KMH, three numbers") from None
+    if not (start < end and 0 < kmh <= 200):
+        raise ConfigError("--tsr", text, "START_KM < END_KM and a limit in (0, 200] km/h")
+    return float(km_post_to_m(start)), float(km_post_to_m(end)), float(kmh_to_mps(kmh))
+
+
+def run(args: argparse.Namespace) -> int:
+    from railpilot.line import load_line
+    from railpilot.onboard.drive import TsrRequest, drive, train_preset
+
+    # every input is checked before anything runs or is written
+    tsrs = tuple(TsrRequest(*parse_tsr(t)) for t in args.tsr)
+    if args.running_time is not None and not args.running_time > 0:
+        raise ConfigError("--running-time", args.running_time, "a running time > 0 [s]")
+    line = load_line(args.line)
+    preset = train_preset(args.train)
+    for name, station in (("--from", args.from_station), ("--to", args.to_station)):
+        try:
+            line.station(station)
+        except Exception as exc:
+            ids = ", ".join(str(s.id) for s in line.stations)
+            raise ConfigError(name, station, f"a station id of {line.name}: {ids}") from exc
+    outcome = drive(
+        line,
+        preset,
+        args.from_station,
+        args.to_station,
+        running_time_s=args.running_time,
+        tsrs=tsrs,
+        targets_m=tuple(float(km_post_to_m(k)) for k in args.target),
+    )
+    summary = outcome.summary()
+    if args.out is not None:
+        from railpilot.report.drive_plots import energy_figure, speed_figure
+        from railpilot.report.figure import save_figure
+
+        stem = file_stem(line.name, str(args.from_station), str(args.to_station))
+        args.out.mkdir(parents=True, exist_ok=True)
+        summary["figures"] = [
+            str(save_figure(speed_figure(outcome), args.out / f"{stem}_speed.png")),
+            str(save_figure(energy_figure(outcome), args.out / f"{stem}_energy.png")),
+        ]
+    if args.json:
+        print_json(summary)
+    else:
+        log(
+            f"{summary['running_time_s']:.0f} s "
+            f"(planned {summary['planned_running_time_s']:.0f} s), "
+            f"traction {summary['energy_traction_kwh']:.0f} kWh, regenerated "
+            f"{summary['energy_regenerated_kwh']:.0f} kWh, stop error "
+            f"{summary['stop_error_m']:.2f} m"
+        )
+    return 0

@@ -1,0 +1,75 @@
+"""``railpilot drive`` (issue 10 item 9, first cut): one object on stdout with the documented
+keys; bad values exit 2 and write nothing."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from railpilot.cli import main
+
+KEYS = {
+    "running_time_s",
+    "planned_running_time_s",
+    "energy_traction_kwh",
+    "energy_regenerated_kwh",
+    "max_overspeed_kmh",
+    "target_points_passed",
+    "tsr_checks",
+}
+
+
+def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> None:  # type: ignore[no-untyped-def]
+    code = main(
+        [
+            "drive",
+            "heavy-haul",
+            "--from",
+            "1",
+            "--to",
+            "2",
+            "--tsr",
+            "12:14:45",
+            "--target",
+            "20.5",
+            "--out",
+            str(tmp_path),
+            "--json",
+        ]
+    )
+    assert code == 0
+    out = json.loads(capsys.readouterr().out)
+    assert set(out) >= KEYS
+    assert set(out["max_overspeed_kmh"]) == {"head", "tail"}
+    assert out["target_points_passed"] == 0
+    # the train stops before the red signal, at the target stop a safety distance before it
+    assert out["to_km"] < 20.5
+    (check,) = out["tsr_checks"]
+    assert check["regen_sufficient"] in (True, False)
+    assert check["feasible"] is True
+    # the planned curve meets the running time asked (fastest + 10 %) within 0.1 s
+    assert abs(out["planned_running_time_s"] - out["requested_running_time_s"]) <= 0.1
+    assert len(list(tmp_path.glob("*.png"))) == 2
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["--tsr", "14:12:45"], "--tsr"),
+        (["--tsr", "12:14"], "--tsr"),
+        (["--running-time", "-5"], "--running-time"),
+        (["--to", "999"], "--to"),
+    ],
+)
+def test_bad_values_exit_2_naming_the_field_and_write_nothing(
+    tmp_path, capsys, args, field
+) -> None:  # type: ignore[no-untyped-def]
+    base = ["drive", "heavy-haul", "--from", "1", "--to", "2", "--out", str(tmp_path), "--json"]
+    # a later --to replaces the first
+    code = main(base + args)
+    assert code == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert field in captured.err
+    assert list(tmp_path.iterdir()) == []
