@@ -19,33 +19,24 @@ import time
 
 import numpy as np
 
-from railpilot.onboard.planner import DrivingTrain, fastest, plan, section
+from railpilot.onboard.drive import heavy_haul_loaded
+from railpilot.onboard.planner import fastest, plan, section
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import elevation_table
-from railpilot.vehicle.traction import hxd1_locomotive
-from railpilot.vehicle.train import Train
 
 LENGTH_M = 45_000.0
 
 
 def heavy_haul_section():  # type: ignore[no-untyped-def]
-    train = Train(
-        mass_kg=10_000e3,
-        length_m=1600.0,
-        rotating_mass_factor=0.06,
-        davis_a0=0.92,
-        davis_a1=0.0048,
-        davis_a2=0.000125,
-        max_service_decel_mps2=0.5,
-    )
+    preset = heavy_haul_loaded()
     line = Line(gradients=(Segment(10_000.0, 18_000.0, -12.0), Segment(25_000.0, 31_000.0, 4.0)))
     ceiling = (
         np.array([0.0, 34_000.0, 36_000.0, LENGTH_M]),
         np.array([kmh_to_mps(80.0), kmh_to_mps(45.0), kmh_to_mps(80.0)]),
     )
-    sec = section(LENGTH_M, ceiling, elevation_table(line), train_length_m=1600.0)
-    return DrivingTrain(train, hxd1_locomotive()), sec
+    sec = section(LENGTH_M, ceiling, elevation_table(line), train_length_m=preset.train.length_m)
+    return preset.driving, sec
 
 
 def main() -> None:

@@ -18,24 +18,16 @@ from scipy.optimize import brentq
 from railpilot.brakes.brake_pipe import BrakePipeBrake, train_force_fraction
 from railpilot.errors import ConfigError
 from railpilot.onboard.braking import BrakingTrain, predict_braking, tsr_check
+from railpilot.onboard.drive import heavy_haul_loaded
 from railpilot.units import G_MPS2, kmh_to_mps
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import BACKWARD, FORWARD, elevation_table, length_averaged_resistance
 from railpilot.vehicle.resistance import davis_resistance_n
-from railpilot.vehicle.traction import hxd1_locomotive
 from railpilot.vehicle.train import Train
 
-#: the heavy-haul train of examples/heavy_haul_run.toml
-TRAIN = Train(
-    mass_kg=10_000e3,
-    length_m=1600.0,
-    rotating_mass_factor=0.06,
-    davis_a0=0.92,
-    davis_a1=0.0048,
-    davis_a2=0.000125,
-    max_service_decel_mps2=0.5,
-)
-HEAVY = BrakingTrain(TRAIN, hxd1_locomotive(), BrakePipeBrake(max_decel_mps2=0.5))
+#: the heavy-haul train of examples/heavy_haul_run.toml (``railpilot drive``'s preset)
+TRAIN = heavy_haul_loaded().train
+HEAVY = heavy_haul_loaded().braking
 #: the cases of the table: gradient [per mille] x limit [km/h], 80 km/h, TSR 3 km ahead
 GRADES = [0.0, -4.0, -12.0]
 LIMITS_KMH = [60.0, 45.0]

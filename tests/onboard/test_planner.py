@@ -12,6 +12,7 @@ import pytest
 from numpy.testing import assert_allclose
 
 from railpilot.errors import ConfigError
+from railpilot.onboard.drive import heavy_haul_loaded
 from railpilot.onboard.planner import (
     TIME_TOLERANCE_S,
     DrivingTrain,
@@ -24,18 +25,10 @@ from railpilot.units import G_MPS2, kmh_to_mps
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import elevation_table
 from railpilot.vehicle.traction import hxd1_locomotive
-from railpilot.vehicle.train import Train
 
-TRAIN = Train(
-    mass_kg=10_000e3,
-    length_m=1600.0,
-    rotating_mass_factor=0.06,
-    davis_a0=0.92,
-    davis_a1=0.0048,
-    davis_a2=0.000125,
-    max_service_decel_mps2=0.5,
-)
-DRIVE = DrivingTrain(TRAIN, hxd1_locomotive())
+#: the heavy-haul train of examples/heavy_haul_run.toml (``railpilot drive``'s preset)
+TRAIN = heavy_haul_loaded().train
+DRIVE = heavy_haul_loaded().driving
 V80 = kmh_to_mps(80.0)
 
 

@@ -25,6 +25,7 @@ from .messages import (
     RegisterResult,
     TargetPoint,
     TargetPointResult,
+    TravelDirection,
     TsrCancelResult,
     TsrSetResult,
 )
@@ -233,6 +234,24 @@ class AppliedTsr:
     limit_mps: float
     valid_from_s: float
     valid_until_s: float
+
+
+def tsr_zone(
+    start_m: float, end_m: float, train_length_m: float, direction: TravelDirection
+) -> tuple[float, float]:
+    """The zone ``(low_m, high_m)`` [m] a TSR on ``start_m..end_m`` is enforced on.
+
+    The stretch (either order) extended by ``train_length_m`` [m] on its exit side so the
+    tail obeys the limit too (paper 001, 2.5): going UP the high end moves up, going DOWN
+    the low end moves down (not below km 0); direction UNKNOWN: both ends, the safe side.
+    The one rule for the link's onboard endpoint and the onboard's MRSP.
+    """
+    low, high = sorted((start_m, end_m))
+    if direction is not TravelDirection.DOWN:  # UP, or UNKNOWN: both ends
+        high += train_length_m
+    if direction is not TravelDirection.UP:
+        low = max(0.0, low - train_length_m)
+    return low, high
 
 
 @dataclass(frozen=True, slots=True)

@@ -28,6 +28,7 @@ from .events import (
     TsrCancelled,
     TsrExpired,
     TsrRefused,
+    tsr_zone,
 )
 from .frame import Frame
 from .keys import KeyStore
@@ -409,16 +410,8 @@ class OnboardEndpoint(Endpoint):
 
     def _extend(self, tsr: TsrSet) -> AppliedTsr:
         """Extend the zone by one train length so the tail obeys the limit too (2.5)."""
-        low, high = sorted((tsr.start_m, tsr.end_m))
-        length = self.config.train_length_m
         direction = self._running_info.direction if self._running_info else TravelDirection.UNKNOWN
-        if direction is TravelDirection.UP:
-            high += length
-        elif direction is TravelDirection.DOWN:
-            low = max(0.0, low - length)
-        else:  # direction unknown: extend both ends, the safe side
-            high += length
-            low = max(0.0, low - length)
+        low, high = tsr_zone(tsr.start_m, tsr.end_m, self.config.train_length_m, direction)
         return AppliedTsr(
             tsr.session,
             tsr.start_m,

@@ -45,7 +45,7 @@ import numpy as np
 import numpy.typing as npt
 
 from railpilot.errors import ConfigError
-from railpilot.link.events import AppliedTsr
+from railpilot.link.events import AppliedTsr, tsr_zone
 from railpilot.link.messages import TargetPoint, TravelDirection, TsrSet
 
 FloatArray = npt.NDArray[np.float64]
@@ -324,8 +324,8 @@ def extend_tsr(
     The received stretch (either order) extended by ``train_length_m`` [m] on its exit
     side so that the tail obeys the limit too (paper 001, 2.5): going ``UP`` the high end
     moves up, going ``DOWN`` the low end moves down (not below km 0), direction
-    ``UNKNOWN``: both ends, the safe side. The rule of the link's onboard endpoint
-    (``OnboardEndpoint._extend``), which records the result as ``AppliedTsr.zone_*_m``.
+    ``UNKNOWN``: both ends, the safe side. The checked front of the link's one rule,
+    :func:`railpilot.link.events.tsr_zone`, which the onboard endpoint applies too.
     """
     for name, value in (("start_m", start_m), ("end_m", end_m)):
         if not math.isfinite(value):
@@ -336,12 +336,7 @@ def extend_tsr(
         raise ConfigError("train_length_m", train_length_m, "a finite length >= 0 [m]")
     if not isinstance(direction, TravelDirection):
         raise ConfigError("direction", direction, "a TravelDirection (UP, DOWN or UNKNOWN)")
-    low, high = sorted((float(start_m), float(end_m)))
-    if direction is not DOWN:  # UP, or UNKNOWN: both ends
-        high += train_length_m
-    if direction is not UP:
-        low = max(0.0, low - train_length_m)
-    return low, high
+    return tsr_zone(float(start_m), float(end_m), float(train_length_m), direction)
 
 
 def apply_tsr(tsr: TsrSet, train_length_m: float, direction: TravelDirection) -> AppliedTsr:
