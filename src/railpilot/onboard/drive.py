@@ -218,7 +218,7 @@ def drive(
         if 0.0 < s < end_s:
             end_s = s
     edges_s, ceiling = _whole_train_ceiling(mrsp, direction, departure, end_s, preset)
-    vehicle_line = _train_line(line, preset.category, direction, departure)
+    vehicle_line = train_line(line, preset.category, direction, departure)
     table = elevation_table(vehicle_line)
     sec = section(end_s, (edges_s, ceiling), table, train_length_m=preset.train.length_m)
     quickest = fastest(preset.driving, sec)
@@ -265,7 +265,7 @@ def _whole_train_ceiling(
     return grid, lowest[: speeds.size]
 
 
-def _train_line(
+def train_line(
     line: RailLine, category: str, direction: TravelDirection, departure_m: float
 ) -> Line:
     """The line in the train's coordinate with the departure stop at 0."""

@@ -1,0 +1,32 @@
+"""The loop closed in simulation: the driver model drives the planned curve (issue 10 item 7).
+
+Measured, not tuned: the heavy-haul train from station 1 to 2 of the shipped line.
+"""
+
+from railpilot.line import load_line
+from railpilot.onboard.advice import DriverModel
+from railpilot.onboard.drive import train_line, drive, heavy_haul_loaded
+from railpilot.scenario.model import ATOModel, Scenario, SimSettings
+from railpilot.sim.drive_profile import PlannedProfile
+from railpilot.sim.run import simulate
+
+
+def test_a_driver_following_the_plan_arrives_close_to_the_planned_time() -> None:
+    line = load_line("heavy-haul")
+    preset = heavy_haul_loaded()
+    outcome = drive(line, preset, 1, 2)
+    plan = outcome.plan
+    scenario = Scenario(
+        name="driver",
+        train=preset.train,
+        line=train_line(line, preset.category, outcome.direction, outcome.departure_m),
+        brake=preset.brake,
+        reference=PlannedProfile(plan.s_m, plan.speed_mps),
+        ato=ATOModel(reference="distance", gradient_feedforward=True),
+        sim=SimSettings(dt_s=0.1, duration_s=1.6 * plan.running_time_s),
+    )
+    result = simulate(scenario, DriverModel(max_accel_mps2=0.07, max_decel_mps2=0.5))
+    assert result.meta["stopped"]
+    # measured 4.2 % late and 24 m short (docs/onboard.md): a driver, not a precise-stop ATO
+    assert abs(result.metrics["running_time_s"] / plan.running_time_s - 1.0) < 0.06
+    assert abs(result.metrics["stop_error_m"]) < 50.0
