@@ -367,3 +367,41 @@ def test_sizes_rejects_params_that_are_not_a_drives():
     with pytest.raises(ConfigError) as err:
         DRIVE.sizes(p[:-3])  # the air brake's part cut short
     assert err.value.field == "brake.air.params"
+
+
+# --- the brake manager's handover from regeneration to air ---------------------------------
+
+
+def test_handover_share_falls_linearly_from_the_handover_to_the_fade_speed():
+    from railpilot.brakes.locomotive_drive import handover_share
+
+    fade, handover = kmh_to_mps(10.0), kmh_to_mps(50.0)
+    v = kmh_to_mps(np.array([0.0, 5.0, 10.0, 20.0, 30.0, 50.0, 80.0]))
+    assert_allclose(handover_share(v, handover, fade), [0, 0, 0, 0.25, 0.5, 1, 1], atol=1e-12)
+    # no handover (0, or not above the fade speed): always the whole share
+    assert_allclose(handover_share(v, 0.0, fade), 1.0)
+
+
+def test_with_a_handover_the_air_brake_takes_regeneration_s_share_early():
+    # at 30 km/h, halfway from the 50 km/h handover to the 10 km/h fade, regeneration
+    # gives half its envelope and the air brake the rest; above 50 km/h nothing changes
+    drive = LocomotiveDrive(traction_lag_s=LAG, handover_kmh=50.0)
+    u = -0.1
+    v = kmh_to_mps(30.0)
+    e_ss, a_ss = drive.steady_forces_n(u, v, M_EFF, M_EFF)
+    envelope = float(drive.locomotive.regen.max_force(v))
+    assert float(e_ss) == pytest.approx(0.5 * envelope)
+    assert float(a_ss) == pytest.approx(-u * M_EFF - 0.5 * envelope)
+    electric, air, _, _ = run(drive, np.full(STEADY, u), v)
+    assert electric[-1] == pytest.approx(0.5 * envelope, rel=1e-12)
+    assert air[-1] == pytest.approx(float(a_ss), rel=1e-8)
+    fast = kmh_to_mps(60.0)
+    assert drive.steady_forces_n(u, fast, M_EFF, M_EFF)[0] == pytest.approx(
+        DRIVE.steady_forces_n(u, fast, M_EFF, M_EFF)[0]
+    )
+
+
+def test_bad_handover_names_the_field():
+    with pytest.raises(ConfigError) as err:
+        LocomotiveDrive(handover_kmh=-5.0)
+    assert err.value.field == "brake.handover_kmh"

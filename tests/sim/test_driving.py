@@ -129,10 +129,10 @@ def test_the_heavy_haul_run_starts_cruises_holds_the_descent_and_stops(heavy_hau
     _, result = heavy_haul
     m = result.metrics
     assert result.meta["stopped"]
-    # a PID with an air brake that takes a minute to build up along 1,600 m
-    # (docs/heavy-haul-brake.md) and regeneration fading below 10 km/h: metres, not
-    # centimetres (measured 6.2 m past; docs/results.md); precise stopping is issue 10's
-    assert abs(m["stop_error_m"]) < 10.0
+    # the air brake takes a minute to build up along 1,600 m (docs/heavy-haul-brake.md) and
+    # regeneration fades below 10 km/h: with the brake manager's handover from 50 km/h the
+    # air is there in time (measured 0.08 m past; 6.2 m past without the handover)
+    assert abs(m["stop_error_m"]) < 2.0
     assert m["energy_traction_kwh"] > 0.0 and m["energy_regenerated_kwh"] > 0.0
     x, v = result["position_m"], result["speed_mps"]
     # on the 12 per mille descent (8-16 km) it holds 80 km/h within 2 km/h, braking with

@@ -37,6 +37,7 @@ from numba import njit
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake, brake_pipe_ato_step
 from railpilot.errors import ConfigError
+from railpilot.units import kmh_to_mps
 from railpilot.vehicle.traction import (
     Locomotive,
     hxd1_locomotive,
@@ -54,8 +55,10 @@ P_T_F0, P_T_POWER, P_T_VMAX = 1, 2, 3
 P_R_F0, P_R_POWER, P_R_FADE = 4, 5, 6
 #: 1.0 if the regenerative brake is in use, 0.0 if every brake demand goes to the air
 P_REGEN_ON = 7
+#: the handover speed [m/s]: below it regeneration is handed over to the air brake (0: none)
+P_HANDOVER = 8
 #: the air brake's packed params start here (brakes/brake_pipe.py's layout)
-P_AIR0 = 8
+P_AIR0 = 9
 # --- state layout --------------------------------------------------------------------------
 #: the delivered electric force [N], signed like a brake force (negative: traction)
 ST_E = 0
@@ -91,12 +94,18 @@ class LocomotiveDrive:
     regen_enabled
         False: no regenerative brake (e.g. a non-receptive catenary); the air brake then
         covers every brake demand. Traction is unaffected.
+    handover_kmh
+        The brake manager's handover speed [km/h]: below it, the regenerative brake's share
+        is scaled down linearly to nothing at its fade speed, and the air brake takes the
+        rest, so a slow air brake is built up by the time regeneration fades. 0 (default):
+        no handover, regeneration to its own fade (docs/locomotive-drive.md).
     """
 
     locomotive: Locomotive = field(default_factory=hxd1_locomotive)
     traction_lag_s: float = TRACTION_LAG_S
     air: BrakePipeBrake = field(default_factory=BrakePipeBrake)
     regen_enabled: bool = True
+    handover_kmh: float = 0.0
 
     name: ClassVar[str] = "locomotive-drive"
     #: the regenerative brake fades by its envelope (``fade_below_mps``), not at a changeover
@@ -119,6 +128,9 @@ class LocomotiveDrive:
             raise ConfigError("brake.traction_lag_s", lag, f"a number in [0, {MAX_LAG_S:g}] s")
         if not isinstance(self.regen_enabled, bool | np.bool_):
             raise ConfigError("brake.regen_enabled", self.regen_enabled, "true or false")
+        h = self.handover_kmh
+        if isinstance(h, bool) or not (isinstance(h, int | float) and 0 <= h <= 200):
+            raise ConfigError("brake.handover_kmh", h, "a speed in [0, 200] km/h")
 
     @property
     def lead_s(self) -> tuple[float, float]:
@@ -194,6 +206,7 @@ class LocomotiveDrive:
         own[P_R_POWER] = loco.regen.max_power_w
         own[P_R_FADE] = loco.regen.fade_below_mps
         own[P_REGEN_ON] = 1.0 if self.regen_enabled else 0.0
+        own[P_HANDOVER] = kmh_to_mps(self.handover_kmh)
         return np.concatenate((own, self.air.pack(context)))
 
     # --- pure helpers (tests, docs, ATO tuning) ----------------------------------------------
@@ -210,7 +223,9 @@ class LocomotiveDrive:
         u = np.asarray(u_mps2, dtype=float)
         demand = u * m_eff_lw_kg
         traction = self.locomotive.traction.max_force(speed_mps)
-        regen = self.locomotive.regen.max_force(speed_mps)
+        regen = self.locomotive.regen.max_force(speed_mps) * handover_share(
+            speed_mps, kmh_to_mps(self.handover_kmh), self.locomotive.regen.fade_below_mps
+        )
         if not self.regen_enabled:
             regen = np.zeros_like(regen)
         return np.asarray(
@@ -242,6 +257,28 @@ class LocomotiveDrive:
         a_max = self.air.max_decel_mps2
         fraction = np.minimum(rest / (a_max * m_eff_lw_kg), 1.0)
         return electric, np.asarray(fraction * a_max * m_eff_kg)
+
+
+@njit(cache=True)
+def _handover_share(speed: float, handover_mps: float, fade_mps: float) -> float:
+    if handover_mps <= fade_mps or speed >= handover_mps:
+        return 1.0
+    if speed <= fade_mps:
+        return 0.0
+    return (speed - fade_mps) / (handover_mps - fade_mps)
+
+
+def handover_share(speed_mps: npt.ArrayLike, handover_mps: float, fade_mps: float) -> np.ndarray:
+    """The regenerative brake's share [-] under the brake manager's handover.
+
+    1 at and above ``handover_mps`` [m/s] (and always when it is not above the fade speed),
+    falling linearly to 0 at ``fade_mps`` [m/s], 0 below. :func:`_handover_share` is the
+    kernel's scalar twin.
+    """
+    v = np.abs(np.asarray(speed_mps, dtype=float))
+    if handover_mps <= fade_mps:
+        return np.ones_like(v)
+    return np.asarray(np.clip((v - fade_mps) / (handover_mps - fade_mps), 0.0, 1.0))
 
 
 def electric_step_response_n(
@@ -293,6 +330,7 @@ def locomotive_drive_ato_step(
     r_max = 0.0
     if p[P_REGEN_ON] > 0.0:
         r_max = regen_force_max(speed_mps, p[P_R_F0], p[P_R_POWER], p[P_R_FADE])
+        r_max *= _handover_share(speed_mps, p[P_HANDOVER], p[P_R_FADE])
     u_air = 0.0
     if u > 0.0:
         target = -min(demand, t_max)

@@ -82,7 +82,10 @@ def heavy_haul_loaded() -> TrainPreset:
         max_service_decel_mps2=0.5,
     )
     brake = LocomotiveDrive(
-        locomotive=hxd1_locomotive(), traction_lag_s=1.0, air=BrakePipeBrake(max_decel_mps2=0.5)
+        locomotive=hxd1_locomotive(),
+        traction_lag_s=1.0,
+        air=BrakePipeBrake(max_decel_mps2=0.5),
+        handover_kmh=50.0,
     )
     return TrainPreset("heavy-haul-loaded", "freight_loaded", train, brake)
 
