@@ -236,3 +236,19 @@ def test_bad_inputs_name_the_field():
             elevation_table(Line()),
         )
     assert err.value.field == "ceiling"
+
+
+def test_a_planning_brake_weaker_than_a_descent_still_gives_a_plan():
+    # 0.05 m/s^2 cannot hold a 10,000 t train on 12 per mille (0.09 m/s^2 of gravity net):
+    # where it would be needed the plan brakes with the train's full service, and the plan
+    # never stands still between the stops
+    weak = DrivingTrain(TRAIN, DRIVE.locomotive, brake_mps2=0.05)
+    sec = make_section(
+        15_000.0,
+        [(5_000.0, 12_000.0, -12.0)],
+        (np.array([0.0, 11_000.0, 13_000.0, 15_000.0]), np.array([V80, kmh_to_mps(45.0), V80])),
+    )
+    curve = plan(weak, sec, 1.1 * fastest(weak, sec).running_time_s)
+    assert curve.met
+    assert np.all(curve.speed_mps[1:-1] > 0.0)
+    assert np.all(curve.speed_mps <= sec.ceiling_mps + 1e-12)

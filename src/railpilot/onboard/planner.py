@@ -86,8 +86,9 @@ REGEN_BRAKING_SHARES = (math.inf, 0.75, 0.5, 0.35, 0.2, 0.0)
     Q_BRAKE,
     Q_ETA_T,
     Q_ETA_R,
-) = range(14)
-N_Q = 14
+    Q_SERVICE,
+) = range(15)
+N_Q = 15
 
 
 @dataclass(frozen=True)
@@ -138,6 +139,7 @@ class DrivingTrain:
         q[Q_BRAKE] = self.brake_mps2
         q[Q_ETA_T] = loco.traction_efficiency
         q[Q_ETA_R] = loco.regen_efficiency
+        q[Q_SERVICE] = t.max_service_decel_mps2
         return q
 
     def resistance_n(self, speed_mps: float) -> float:
@@ -193,6 +195,10 @@ def _envelope(
                 braking = coast + min(regen / q[Q_MEFF], q[Q_BRAKE])
             else:
                 braking = coast + q[Q_BRAKE]
+                if braking <= 0.0:
+                    # the planning brake cannot hold the train here (a descent steeper
+                    # than it): the plan brakes with the train's full service instead
+                    braking = coast + q[Q_SERVICE]
             sq = v * v + 2.0 * dx * braking
             if v < vf and sq > vf * vf and braking > 0.0:
                 # braking reaches vf within the step: brake up to vf, coast the rest (so the
