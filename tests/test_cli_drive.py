@@ -17,6 +17,8 @@ KEYS = {
     "max_overspeed_kmh",
     "target_points_passed",
     "tsr_checks",
+    "supervision_curves",
+    "above_intervention_s",
 }
 
 
@@ -43,6 +45,8 @@ def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> N
     assert set(out) >= KEYS
     assert set(out["max_overspeed_kmh"]) == {"head", "tail"}
     assert out["target_points_passed"] == 0
+    # the 75 km/h limit, the TSR and the target stop each have a supervision curve
+    assert out["supervision_curves"] == 3
     # the train stops before the red signal, at the target stop a safety distance before it
     assert out["to_km"] < 20.5
     (check,) = out["tsr_checks"]

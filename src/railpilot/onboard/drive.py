@@ -37,6 +37,7 @@ from railpilot.onboard.mrsp import (
     travelled_m,
 )
 from railpilot.onboard.planner import DrivingTrain, PlannedCurve, fastest, plan, section
+from railpilot.onboard.supervision import SupervisionCurve, supervision_curve
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.sim.drive_profile import PlannedProfile
@@ -125,6 +126,7 @@ class DriveOutcome:
     result: SimResult
     tsr_checks: tuple[dict[str, Any], ...]
     train_length_m: float
+    supervision: tuple[SupervisionCurve, ...] = ()
 
     def km_post(self, travelled: np.ndarray) -> np.ndarray:
         """Km-post positions [m] of distances [m] from the departure stop."""
@@ -147,7 +149,19 @@ class DriveOutcome:
             if np.any(travelled_m(x, self.direction, signal) > 0.0)
         )
         metrics = r.metrics
-        return {
+        s_run = r["position_m"]
+        above = np.zeros(s_run.shape, dtype=bool)
+        for curve in self.supervision:
+            # a curve supervises the approach to its target, not what lies beyond it
+            approach = s_run <= curve.target_m
+            above |= moving & approach & (v > curve.permitted_speed_mps(s_run) + 1e-6)
+        metrics_out = {
+            "supervision_curves": len(self.supervision),
+            "above_intervention_s": float(
+                np.sum(np.diff(r["time_s"], append=r["time_s"][-1])[above])
+            ),
+        }
+        return metrics_out | {
             "direction": "up" if self.direction == UP else "down",
             "from_km": self.departure_m / 1000.0,
             "to_km": self.arrival_m / 1000.0,
@@ -232,6 +246,7 @@ def drive(
     )
     planned = plan(preset.driving, sec, target_time)
     checks = tuple(_tsr_check(preset, table, planned, tsr, direction, departure) for tsr in applied)
+    curves = _supervision(preset, table, mrsp, direction, departure, end_s)
     result = _simulate(preset, vehicle_line, planned, dt_s)
     return DriveOutcome(
         direction,
@@ -245,7 +260,31 @@ def drive(
         result,
         checks,
         preset.train.length_m,
+        curves,
     )
+
+
+def _supervision(
+    preset: TrainPreset,
+    table: Any,
+    mrsp: Mrsp,
+    direction: TravelDirection,
+    departure_m: float,
+    end_s: float,
+) -> tuple[SupervisionCurve, ...]:
+    """The full-service supervision curve of every decrease of the MRSP on the section.
+
+    In the train's coordinate (metres from the departure stop); the stop at ``end_s``
+    included (a decrease to 0).
+    """
+    curves = []
+    for decrease in mrsp.decreases():
+        target_s = float(travelled_m(decrease.position_m, direction, departure_m))
+        if 0.0 < target_s <= end_s + 1e-6:
+            curves.append(
+                supervision_curve(preset.braking, table, min(target_s, end_s), decrease.to_mps)
+            )
+    return tuple(curves)
 
 
 def _whole_train_ceiling(

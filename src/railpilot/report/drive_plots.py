@@ -22,6 +22,17 @@ def speed_figure(outcome: DriveOutcome) -> Figure:
     mrsp = outcome.mrsp.at(grid)
     ax.plot(grid / 1000.0, mps_to_kmh(static), color="0.6", lw=1.2, label="static limit")
     ax.plot(grid / 1000.0, mps_to_kmh(mrsp), color="tab:red", lw=1.5, ls="--", label="MRSP")
+    for i, curve in enumerate(outcome.supervision):
+        speeds = np.linspace(curve.target_speed_mps, float(curve.speed_mps[-1]), 200)
+        at_s = curve.target_m - curve.intervention_distance_m(speeds)
+        keep = np.isfinite(at_s) & (at_s >= 0.0)
+        ax.plot(
+            outcome.km_post(at_s[keep]) / 1000.0,
+            mps_to_kmh(speeds[keep]),
+            color="tab:orange",
+            lw=1.0,
+            label="intervention (full service)" if i == 0 else None,
+        )
     ax.plot(x_plan, mps_to_kmh(plan.speed_mps), color="tab:green", lw=1.5, label="planned")
     r = outcome.result
     ax.plot(
