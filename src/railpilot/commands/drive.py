@@ -23,7 +23,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--train", default="heavy-haul-loaded", choices=sorted(TRAINS))
     p.add_argument("--from", dest="from_station", type=int, required=True, help="station id")
     p.add_argument("--to", dest="to_station", type=int, required=True, help="station id")
-    p.add_argument("--running-time", type=float, help="[s]; default: fastest + 10 %%")
+    times = p.add_mutually_exclusive_group()
+    times.add_argument("--running-time", type=float, help="[s]; default: fastest + 10 %%")
+    times.add_argument(
+        "--timetable",
+        help="a timetable file, or 'heavy-haul' (the shipped one): drive every section of "
+        "it from --from to --to",
+    )
     p.add_argument(
         "--tsr",
         action="append",
@@ -72,6 +78,12 @@ def run(args: argparse.Namespace) -> int:
         except Exception as exc:
             ids = ", ".join(str(s.id) for s in line.stations)
             raise ConfigError(name, station, f"a station id of {line.name}: {ids}") from exc
+    targets = tuple(float(km_post_to_m(k)) for k in args.target)
+    if args.timetable is not None:
+        from railpilot.onboard.timetable import load_timetable
+
+        sections = load_timetable(args.timetable).between(args.from_station, args.to_station)
+        return _run_timetable(args, line, preset, sections, tsrs, targets)
     outcome = drive(
         line,
         preset,
@@ -79,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
         args.to_station,
         running_time_s=args.running_time,
         tsrs=tsrs,
-        targets_m=tuple(float(km_post_to_m(k)) for k in args.target),
+        targets_m=targets,
     )
     summary = outcome.summary()
     if args.out is not None:
@@ -101,5 +113,67 @@ def run(args: argparse.Namespace) -> int:
             f"traction {summary['energy_traction_kwh']:.0f} kWh, regenerated "
             f"{summary['energy_regenerated_kwh']:.0f} kWh, stop error "
             f"{summary['stop_error_m']:.2f} m"
+        )
+    return 0
+
+
+def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type: ignore[no-untyped-def]
+    """Every section of the timetable, one after the other, each from stop to stop."""
+    from railpilot.onboard.drive import drive
+
+    results = []
+    for section in sections:
+        log(f"section {section.from_id} -> {section.to_id} ({section.running_time_s:.0f} s)")
+        outcome = drive(
+            line,
+            preset,
+            section.from_id,
+            section.to_id,
+            running_time_s=section.running_time_s,
+            tsrs=tsrs,
+            targets_m=targets,
+        )
+        summary = outcome.summary()
+        summary["from"] = section.from_id
+        summary["to"] = section.to_id
+        summary["timetable_running_time_s"] = section.running_time_s
+        summary["conformity_pct"] = (
+            (summary["running_time_s"] - section.running_time_s) / section.running_time_s * 100.0
+        )
+        if args.out is not None:
+            from railpilot.report.drive_plots import energy_figure, speed_figure
+            from railpilot.report.figure import save_figure
+
+            stem = file_stem(line.name, str(section.from_id), str(section.to_id))
+            args.out.mkdir(parents=True, exist_ok=True)
+            summary["figures"] = [
+                str(save_figure(speed_figure(outcome), args.out / f"{stem}_speed.png")),
+                str(save_figure(energy_figure(outcome), args.out / f"{stem}_energy.png")),
+            ]
+        results.append(summary)
+    actual = sum(r["running_time_s"] for r in results)
+    planned = sum(r["timetable_running_time_s"] for r in results)
+    total = {
+        "sections": results,
+        "running_time_s": actual,
+        "timetable_running_time_s": planned,
+        "conformity_pct": (actual - planned) / planned * 100.0,
+        "max_section_conformity_pct": max(abs(r["conformity_pct"]) for r in results),
+        "energy_traction_kwh": sum(r["energy_traction_kwh"] for r in results),
+        "energy_regenerated_kwh": sum(r["energy_regenerated_kwh"] for r in results),
+        "max_overspeed_kmh": {
+            end: max(r["max_overspeed_kmh"][end] for r in results) for end in ("head", "tail")
+        },
+        "target_points_passed": sum(r["target_points_passed"] for r in results),
+        "max_abs_stop_error_m": max(abs(r["stop_error_m"]) for r in results),
+        "tsr_checks": [c for r in results for c in r["tsr_checks"]],
+    }
+    if args.json:
+        print_json(total)
+    else:
+        log(
+            f"{len(results)} sections: {actual:.0f} s against {planned:.0f} s "
+            f"({total['conformity_pct']:+.2f} %), worst section "
+            f"{total['max_section_conformity_pct']:.2f} %"
         )
     return 0
