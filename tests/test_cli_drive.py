@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import json
 
+import numpy as np
 import pytest
 
 from railpilot.cli import main
@@ -64,6 +65,7 @@ def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> N
         (["--tsr", "12:14"], "--tsr"),
         (["--running-time", "-5"], "--running-time"),
         (["--to", "999"], "--to"),
+        (["--margin", "-1"], "--margin"),
     ],
 )
 def test_bad_values_exit_2_naming_the_field_and_write_nothing(
@@ -77,3 +79,16 @@ def test_bad_values_exit_2_naming_the_field_and_write_nothing(
     assert captured.out == ""
     assert field in captured.err
     assert list(tmp_path.iterdir()) == []
+
+
+def test_the_plan_keeps_the_margin_below_the_mrsp() -> None:
+    from railpilot.line import load_line
+    from railpilot.onboard.drive import drive, heavy_haul_loaded
+
+    outcome = drive(load_line("heavy-haul"), heavy_haul_loaded(), 1, 2, margin_kmh=5.0)
+    s = outcome.plan.s_m
+    # the MRSP under the whole train, at the planner's grid (head positions)
+    x = outcome.km_post(s)
+    ceiling = np.minimum(outcome.mrsp.at(x), outcome.mrsp.at(x - 1600.0))
+    allowed = np.maximum(ceiling - 5.0 / 3.6, ceiling / 2.0)
+    assert np.all(outcome.plan.speed_mps <= allowed + 1e-9)

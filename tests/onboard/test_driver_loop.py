@@ -27,6 +27,6 @@ def test_a_driver_following_the_plan_arrives_close_to_the_planned_time() -> None
     )
     result = simulate(scenario, DriverModel(max_accel_mps2=0.07, max_decel_mps2=0.5))
     assert result.meta["stopped"]
-    # measured 1.6 % late and 34 m past (docs/onboard.md): a driver, not a precise-stop ATO
+    # measured 1.0 % late and 3.9 m past (docs/onboard.md); not a precise-stop claim
     assert abs(result.metrics["running_time_s"] / plan.running_time_s - 1.0) < 0.06
     assert abs(result.metrics["stop_error_m"]) < 50.0

@@ -45,6 +45,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="KM",
         help="a signal held at red: a target point (repeatable)",
     )
+    p.add_argument(
+        "--margin",
+        type=float,
+        default=5.0,
+        metavar="KMH",
+        help="the plan keeps this far below the MRSP [km/h] (default 5)",
+    )
     p.add_argument("--out", type=Path, help="write the figures here")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
@@ -92,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
         running_time_s=args.running_time,
         tsrs=tsrs,
         targets_m=targets,
+        margin_kmh=args.margin,
     )
     summary = outcome.summary()
     if args.out is not None:
@@ -132,6 +140,7 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
             running_time_s=section.running_time_s,
             tsrs=tsrs,
             targets_m=targets,
+            margin_kmh=args.margin,
         )
         summary = outcome.summary()
         summary["from"] = section.from_id

@@ -43,7 +43,7 @@ from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSett
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.result import SimResult
 from railpilot.sim.run import simulate
-from railpilot.units import mps_to_kmh
+from railpilot.units import kmh_to_mps, mps_to_kmh
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import elevation_table
 from railpilot.vehicle.traction import hxd1_locomotive
@@ -51,6 +51,9 @@ from railpilot.vehicle.train import Train
 
 #: the running-time supplement over the fastest run when none is given
 DEFAULT_SUPPLEMENT = 0.10
+#: the plan keeps this far below the MRSP [km/h], room for the ATO's tracking error (a
+#: production ATO's target speed sits below the permitted speed the same way)
+DEFAULT_MARGIN_KMH = 5.0
 
 
 @dataclass(frozen=True)
@@ -193,14 +196,18 @@ def drive(
     running_time_s: float | None = None,
     tsrs: tuple[TsrRequest, ...] = (),
     targets_m: tuple[float, ...] = (),
+    margin_kmh: float = DEFAULT_MARGIN_KMH,
     dt_s: float = 0.1,
 ) -> DriveOutcome:
     """Plan and drive ``preset`` from station ``from_station`` to ``to_station`` (ids).
 
     ``running_time_s`` None: the fastest run plus 10 %. ``tsrs``: restrictions in force for
     the whole run; ``targets_m``: km posts [m] of signals held at red (target points), the
-    stop moved back by the safety distance at the line speed.
+    stop moved back by the safety distance at the line speed. ``margin_kmh``: the plan's
+    ceiling is ``max(C - margin, C / 2)`` of the whole-train MRSP ``C``.
     """
+    if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
+        raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
     start = line.station(from_station)
     end = line.station(to_station)
     direction = UP if end.centre_m > start.centre_m else DOWN
@@ -235,6 +242,7 @@ def drive(
         if 0.0 < s < end_s:
             end_s = s
     edges_s, ceiling = _whole_train_ceiling(mrsp, direction, departure, end_s, preset)
+    ceiling = np.maximum(ceiling - kmh_to_mps(margin_kmh), ceiling / 2.0)
     vehicle_line = train_line(line, preset.category, direction, departure)
     table = elevation_table(vehicle_line)
     sec = section(end_s, (edges_s, ceiling), table, train_length_m=preset.train.length_m)
