@@ -385,10 +385,10 @@ def test_status_shows_latest_running_info(ground: Ground, peer: sp.OnboardPeer) 
 
 
 def test_ground_frames_follow_section_5(ground: Ground, peer: sp.OnboardPeer) -> None:
-    t0 = time.monotonic()
+    # the ground heartbeats (section 9; its every-cycle_s cadence is tested on a fake
+    # clock: tests/link/test_ground.py, test_ground_heartbeats_every_cycle)
     n0 = peer.stats.received.get("HEARTBEAT", 0)
     peer.wait_for(lambda: peer.stats.received.get("HEARTBEAT", 0) >= n0 + 2, WAIT, "heartbeats")
-    assert time.monotonic() - t0 < 3.5  # ground heartbeat every cycle_s = 1 s (section 9)
     with peer.lock:
         frames = list(peer.received)
         sent_ts = [f.timestamp_us for f in peer.sent]
@@ -731,13 +731,12 @@ def test_periodic_timeout_closes_link_and_invalidates_running_info(ground: Groun
             lambda: (ground.train(1005).get("running_info") or {}).get("valid"), "valid info"
         )
         before = ground.status()["counters"]
-        t0 = time.monotonic()
         with p.lock:
             p.paused = True  # the onboard hangs: no HEARTBEAT, no RUNNING_INFO
-        # 7: timed out when more than timeout_cycles = 3 whole cycles (1 s) passed: after 4 s
+        # 7: the ground times the link out and closes it (that it waits exactly
+        # timeout_cycles whole cycles is tested on a fake clock: tests/link/test_ground.py,
+        # test_running_info_is_held_between_cycles_then_invalid_after_timeout)
         p.wait_for(lambda: p.state == "DISCONNECTED", WAIT, "ground closes the link")
-        elapsed = time.monotonic() - t0
-        assert 3.5 < elapsed < 6.0
         train = ground.poll(lambda: (t := ground.train(1005)) and not t["connected"] and t, "")
         assert train["running_info"]["valid"] is False
         assert train["running_info"]["timed_out"] is True

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import itertools
+
 import pytest
 
 from railpilot.link import (
@@ -35,6 +37,8 @@ from railpilot.link import (
     TsrState,
     encode_body,
 )
+from railpilot.link.frame import parse_frame
+from railpilot.link.framing import unstuff
 from railpilot.link.ground import TrainRecord
 from railpilot.link.messages import MessageType, RegisterResponse
 
@@ -305,3 +309,24 @@ def test_onboard_and_ground_with_separate_stores_rotate_in_either_order() -> Non
     link.run(2.0)
     assert not [e for e in link.ground_events + link.onboard_events if isinstance(e, FrameRejected)]
     assert link.ground.state is GroundState.REGISTERED
+
+
+def test_ground_heartbeats_every_cycle() -> None:
+    # section 9: the ground sends a HEARTBEAT every cycle_s (1 s), on the fake clock
+    link = registered_link()
+    sent_at: list[float] = []
+
+    def record(frames: list[bytes]) -> list[bytes]:
+        for wire in frames:
+            frame = parse_frame(unstuff(wire[1:]))
+            if frame.message_type == MessageType.HEARTBEAT:
+                sent_at.append(link.now_s)
+        return frames
+
+    link.downlink = record
+    step = 0.1
+    link.run(10.0, dt_s=step)
+    gaps = [b - a for a, b in itertools.pairwise(sent_at)]
+    assert len(sent_at) >= 9
+    # at the first tick at or after each cycle's deadline: within one fake-clock step
+    assert max(gaps) <= link.ground_cfg.timers.cycle_s + step + 1e-6
