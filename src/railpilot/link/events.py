@@ -27,6 +27,7 @@ from .messages import (
     TargetPointResult,
     TravelDirection,
     TsrCancelResult,
+    TsrSet,
     TsrSetResult,
 )
 
@@ -234,6 +235,21 @@ class AppliedTsr:
     limit_mps: float
     valid_from_s: float
     valid_until_s: float
+
+    @classmethod
+    def of(cls, tsr: TsrSet, train_length_m: float, direction: TravelDirection) -> AppliedTsr:
+        """The received ``tsr`` with its zone extended by :func:`tsr_zone`."""
+        low, high = tsr_zone(tsr.start_m, tsr.end_m, train_length_m, direction)
+        return cls(
+            tsr.session,
+            tsr.start_m,
+            tsr.end_m,
+            low,
+            high,
+            tsr.limit_mps,
+            tsr.valid_from_s,
+            tsr.valid_until_s,
+        )
 
 
 def tsr_zone(

@@ -28,7 +28,6 @@ from .events import (
     TsrCancelled,
     TsrExpired,
     TsrRefused,
-    tsr_zone,
 )
 from .frame import Frame
 from .keys import KeyStore
@@ -411,17 +410,7 @@ class OnboardEndpoint(Endpoint):
     def _extend(self, tsr: TsrSet) -> AppliedTsr:
         """Extend the zone by one train length so the tail obeys the limit too (2.5)."""
         direction = self._running_info.direction if self._running_info else TravelDirection.UNKNOWN
-        low, high = tsr_zone(tsr.start_m, tsr.end_m, self.config.train_length_m, direction)
-        return AppliedTsr(
-            tsr.session,
-            tsr.start_m,
-            tsr.end_m,
-            low,
-            high,
-            tsr.limit_mps,
-            tsr.valid_from_s,
-            tsr.valid_until_s,
-        )
+        return AppliedTsr.of(tsr, self.config.train_length_m, direction)
 
     def _on_tsr_cancel(self, cancel: TsrCancel, now_s: float) -> None:
         session = cancel.session

@@ -344,17 +344,8 @@ def apply_tsr(tsr: TsrSet, train_length_m: float, direction: TravelDirection) ->
 
     For a co-simulation or test without the link; the link's endpoint makes the same.
     """
-    low, high = extend_tsr(tsr.start_m, tsr.end_m, train_length_m, direction)
-    return AppliedTsr(
-        tsr.session,
-        tsr.start_m,
-        tsr.end_m,
-        low,
-        high,
-        tsr.limit_mps,
-        tsr.valid_from_s,
-        tsr.valid_until_s,
-    )
+    extend_tsr(tsr.start_m, tsr.end_m, train_length_m, direction)  # checks the inputs
+    return AppliedTsr.of(tsr, float(train_length_m), direction)
 
 
 def _check_tsr(tsr: object) -> AppliedTsr:
