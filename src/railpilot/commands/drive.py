@@ -5,10 +5,14 @@ from __future__ import annotations
 
 import argparse
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from railpilot.commands._common import file_stem, log, print_json
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, LineError
 from railpilot.units import km_post_to_m, kmh_to_mps
+
+if TYPE_CHECKING:
+    from railpilot.onboard.drive import DriveOutcome
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -82,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
     for name, station in (("--from", args.from_station), ("--to", args.to_station)):
         try:
             line.station(station)
-        except Exception as exc:
+        except LineError as exc:
             ids = ", ".join(str(s.id) for s in line.stations)
             raise ConfigError(name, station, f"a station id of {line.name}: {ids}") from exc
     targets = tuple(float(km_post_to_m(k)) for k in args.target)
@@ -103,15 +107,7 @@ def run(args: argparse.Namespace) -> int:
     )
     summary = outcome.summary()
     if args.out is not None:
-        from railpilot.report.drive_plots import energy_figure, speed_figure
-        from railpilot.report.figure import save_figure
-
-        stem = file_stem(line.name, str(args.from_station), str(args.to_station))
-        args.out.mkdir(parents=True, exist_ok=True)
-        summary["figures"] = [
-            str(save_figure(speed_figure(outcome), args.out / f"{stem}_speed.png")),
-            str(save_figure(energy_figure(outcome), args.out / f"{stem}_energy.png")),
-        ]
+        summary["figures"] = _save_figures(args.out, line.name, outcome)
     if args.json:
         print_json(summary)
     else:
@@ -123,6 +119,19 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['stop_error_m']:.2f} m"
         )
     return 0
+
+
+def _save_figures(out: Path, line_name: str, outcome: DriveOutcome) -> list[str]:
+    """The speed and energy figures of one station pair, named after the line and stations."""
+    from railpilot.report.drive_plots import energy_figure, speed_figure
+    from railpilot.report.figure import save_figure
+
+    stem = file_stem(line_name, str(outcome.from_station), str(outcome.to_station))
+    out.mkdir(parents=True, exist_ok=True)
+    return [
+        str(save_figure(speed_figure(outcome), out / f"{stem}_speed.png")),
+        str(save_figure(energy_figure(outcome), out / f"{stem}_energy.png")),
+    ]
 
 
 def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type: ignore[no-untyped-def]
@@ -150,15 +159,7 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
             (summary["running_time_s"] - section.running_time_s) / section.running_time_s * 100.0
         )
         if args.out is not None:
-            from railpilot.report.drive_plots import energy_figure, speed_figure
-            from railpilot.report.figure import save_figure
-
-            stem = file_stem(line.name, str(section.from_id), str(section.to_id))
-            args.out.mkdir(parents=True, exist_ok=True)
-            summary["figures"] = [
-                str(save_figure(speed_figure(outcome), args.out / f"{stem}_speed.png")),
-                str(save_figure(energy_figure(outcome), args.out / f"{stem}_energy.png")),
-            ]
+            summary["figures"] = _save_figures(args.out, line.name, outcome)
         results.append(summary)
     actual = sum(r["running_time_s"] for r in results)
     planned = sum(r["timetable_running_time_s"] for r in results)

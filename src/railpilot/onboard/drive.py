@@ -16,7 +16,7 @@ departure stop in the direction of travel (``mrsp.travelled_m``).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -118,6 +118,8 @@ class TsrRequest:
 class DriveOutcome:
     """Everything one drive produced (the command line prints and plots it)."""
 
+    from_station: int
+    to_station: int
     direction: TravelDirection
     departure_m: float
     arrival_m: float
@@ -257,6 +259,8 @@ def drive(
     curves = _supervision(preset, table, mrsp, direction, departure, end_s)
     result = _simulate(preset, vehicle_line, planned, dt_s)
     return DriveOutcome(
+        from_station,
+        to_station,
         direction,
         departure,
         km_post_m(end_s, direction, departure).item(),
@@ -400,4 +404,4 @@ def _simulate(
         controller=ControllerSpec(name="pid"),
         sim=SimSettings(dt_s=dt_s, duration_s=max(600.0, 1.6 * planned.running_time_s)),
     )
-    return simulate(replace(scenario))
+    return simulate(scenario)

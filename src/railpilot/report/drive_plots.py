@@ -72,18 +72,11 @@ def energy_figure(outcome: DriveOutcome) -> Figure:
     """Traction drawn and regeneration returned, planned against driven [kWh]."""
     fig = Figure(figsize=(6, 4), constrained_layout=True)
     ax = fig.add_subplot(1, 1, 1)
-    s = outcome.summary()
+    plan, metrics = outcome.plan, outcome.result.metrics
     labels = ["traction drawn", "regeneration returned", "net"]
-    planned = [
-        s["planned_energy_traction_kwh"],
-        s["planned_energy_regenerated_kwh"],
-        s["planned_energy_traction_kwh"] - s["planned_energy_regenerated_kwh"],
-    ]
-    driven = [
-        s["energy_traction_kwh"],
-        s["energy_regenerated_kwh"],
-        s["energy_traction_kwh"] - s["energy_regenerated_kwh"],
-    ]
+    planned = [plan.energy_traction_kwh, plan.energy_regenerated_kwh, plan.energy_net_kwh]
+    drawn, returned = metrics["energy_traction_kwh"], metrics["energy_regenerated_kwh"]
+    driven = [drawn, returned, drawn - returned]
     at = np.arange(len(labels))
     ax.bar(at - 0.2, planned, 0.4, label="planned", color="tab:green")
     ax.bar(at + 0.2, driven, 0.4, label="driven", color="tab:blue")

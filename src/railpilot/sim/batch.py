@@ -41,7 +41,7 @@ from railpilot.sim.inputs import (
     reference_inputs,
     run_inputs,
 )
-from railpilot.sim.layout import ReferenceIn, RunInputs, batch_row, stack_runs
+from railpilot.sim.layout import LineIn, ReferenceIn, RunInputs, batch_row, stack_runs
 from railpilot.sim.run import metrics_dict, resolve_controller
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.units import kmh_to_mps, tonne_to_kg
@@ -258,7 +258,7 @@ def _chunk_inputs(
     )
     if batch is not None:
         return batch
-    return _chunk_inputs_per_run(nominal, binding, reference, values, seeds, start, stop)
+    return _chunk_inputs_per_run(nominal, binding, reference, values, seeds, start, stop, line)
 
 
 def _chunk_inputs_per_run(
@@ -269,9 +269,14 @@ def _chunk_inputs_per_run(
     seeds: np.ndarray,
     start: int,
     stop: int,
+    line: LineIn | None = None,
 ) -> RunInputs:
-    """The batch of runs ``start..stop``: each run's own scenario and description, stacked."""
-    line = line_inputs(nominal)  # no sampled parameter changes the line
+    """The batch of runs ``start..stop``: each run's own scenario and description, stacked.
+
+    ``line``: the nominal scenario's line table, if built already (no sampled parameter
+    changes the line).
+    """
+    line = line_inputs(nominal) if line is None else line
     return stack_runs(
         [
             run_inputs(
