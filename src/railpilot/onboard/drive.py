@@ -25,6 +25,7 @@ from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.errors import ConfigError
 from railpilot.line.model import DOWN, UP, RailLine
+from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TargetPoint, TargetReason, TravelDirection, TsrSet
 from railpilot.onboard.braking import BrakingTrain, TsrCheck, tsr_check
 from railpilot.onboard.mrsp import (
@@ -45,7 +46,7 @@ from railpilot.sim.result import SimResult
 from railpilot.sim.run import simulate
 from railpilot.units import kmh_to_mps, mps_to_kmh
 from railpilot.vehicle.line import Line, Segment
-from railpilot.vehicle.profile import elevation_table
+from railpilot.vehicle.profile import ResistanceTable, elevation_table
 from railpilot.vehicle.traction import hxd1_locomotive
 from railpilot.vehicle.train import Train
 
@@ -125,13 +126,17 @@ class DriveOutcome:
     arrival_m: float
     mrsp: Mrsp
     static: SpeedProfile
-    targets: tuple[TargetStop, ...]
     target_signals_m: tuple[float, ...]
     plan: PlannedCurve
     result: SimResult
     tsr_checks: tuple[dict[str, Any], ...]
     train_length_m: float
     supervision: tuple[SupervisionCurve, ...] = ()
+
+    @property
+    def targets(self) -> tuple[TargetStop, ...]:
+        """The target stops (each red signal moved back by its safety distance)."""
+        return self.mrsp.targets
 
     def km_post(self, travelled: np.ndarray) -> np.ndarray:
         """Km-post positions [m] of distances [m] from the departure stop."""
@@ -266,7 +271,6 @@ def drive(
         km_post_m(end_s, direction, departure).item(),
         mrsp,
         static,
-        mrsp.targets,
         tuple(float(t) for t in targets_m),
         planned,
         result,
@@ -278,7 +282,7 @@ def drive(
 
 def _supervision(
     preset: TrainPreset,
-    table: Any,
+    table: ResistanceTable,
     mrsp: Mrsp,
     direction: TravelDirection,
     departure_m: float,
@@ -338,9 +342,9 @@ def train_line(
 
 def _tsr_check(
     preset: TrainPreset,
-    table: Any,
+    table: ResistanceTable,
     planned: PlannedCurve,
-    tsr: Any,
+    tsr: AppliedTsr,
     direction: TravelDirection,
     departure_m: float,
 ) -> dict[str, Any]:

@@ -414,18 +414,8 @@ def plan(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCur
         raise ConfigError("running_time_s", running_time_s, "a running time > 0 [s]")
     quickest = fastest(train, sec)
     if running_time_s <= quickest.running_time_s + TIME_TOLERANCE_S:
-        return PlannedCurve(
-            quickest.s_m,
-            quickest.speed_mps,
-            quickest.running_time_s,
-            quickest.energy_traction_kwh,
-            quickest.energy_regenerated_kwh,
-            None,
-            None,
-            running_time_s,
-            abs(quickest.running_time_s - running_time_s) <= TIME_TOLERANCE_S,
-            "fastest",
-        )
+        met = abs(quickest.running_time_s - running_time_s) <= TIME_TOLERANCE_S
+        return replace(quickest, requested_time_s=running_time_s, met=met)
     q = train.params()
     top = float(sec.ceiling_mps.max())
     best: PlannedCurve | None = None
