@@ -394,10 +394,8 @@ class BrakePipeBrake:
         """The kernel's params for step ``dt`` [s] and a train ``train_length_m`` [m] long."""
         if not (np.isfinite(dt) and dt > 0):
             raise ConfigError("sim.dt_s", dt, "a finite number > 0 [s]")
-        if not (np.isfinite(train_length_m) and train_length_m > 0):
-            raise ConfigError("train.length_m", train_length_m, "a finite number > 0")
         n = self.n_segments
-        timing = self.group_timing(train_length_m)
+        timing = self.group_timing(train_length_m)  # checks the length
         longest = float(max(timing.delay_app_s.max(), timing.delay_rel_s.max()))
         if longest / dt > MAX_DELAY_STEPS:
             raise ConfigError(
