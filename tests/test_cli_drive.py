@@ -66,6 +66,11 @@ def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> N
         (["--running-time", "-5"], "--running-time"),
         (["--to", "999"], "--to"),
         (["--margin", "-1"], "--margin"),
+        (["--tsr", "12:14:45@-3"], "--tsr"),
+        (["--tsr", "12:14:45@soon"], "--tsr"),
+        (["--target", "20.5@300:100"], "--target"),
+        (["--target", "20.5@x"], "--target"),
+        (["--target", "far"], "--target"),
     ],
 )
 def test_bad_values_exit_2_naming_the_field_and_write_nothing(
@@ -92,3 +97,26 @@ def test_the_plan_keeps_the_margin_below_the_mrsp() -> None:
     ceiling = np.minimum(outcome.mrsp.at(x), outcome.mrsp.at(x - 1600.0))
     allowed = np.maximum(ceiling - 5.0 / 3.6, ceiling / 2.0)
     assert np.all(outcome.plan.speed_mps <= allowed + 1e-9)
+
+
+@pytest.mark.parametrize(
+    ("text", "expected"),
+    [
+        ("20.5", (20_500.0, 0.0, float("inf"))),
+        ("20.5@600", (20_500.0, 600.0, float("inf"))),
+        ("20.5@600:780", (20_500.0, 600.0, 780.0)),
+    ],
+)
+def test_target_syntax(text, expected) -> None:  # type: ignore[no-untyped-def]
+    from railpilot.commands.drive import parse_target
+
+    assert parse_target(text) == expected
+
+
+def test_tsr_syntax() -> None:
+    from railpilot.commands.drive import parse_tsr
+
+    start, end, limit, set_s = parse_tsr("12:14:45@500")
+    assert (start, end, set_s) == (12_000.0, 14_000.0, 500.0)
+    assert limit == pytest.approx(12.5)
+    assert parse_tsr("12:14:45")[3] == 0.0

@@ -368,11 +368,13 @@ class BrakePipeBrake:
         dead-time-plus-lag responses).
         """
         timing = self.group_timing(train_length_m)
-        means = timing.delay_app_s + timing.lag_app_s
-        mean = float(means.mean())
-        variance = float(np.mean(timing.lag_app_s**2) + np.mean(means**2) - mean**2)
-        lag = min(float(np.sqrt(max(variance, 0.0))), mean)
-        return mean - lag, lag
+        return _mixture_lead_s(timing.delay_app_s, timing.lag_app_s)
+
+    def train_release_lead_s(self, train_length_m: float) -> tuple[float, float]:
+        """``(delay, lag)`` [s] of the whole train's release, as :meth:`train_lead_s` is of
+        its application (the release wave is slower and the cylinders empty slower)."""
+        timing = self.group_timing(train_length_m)
+        return _mixture_lead_s(timing.delay_rel_s, timing.lag_rel_s)
 
     def sizes(self, params: np.ndarray) -> tuple[int, int]:
         """Floats of state (step index, one fraction per group) and of command history."""
@@ -725,3 +727,13 @@ def etcs_full_force_time_s(
     """
     build_up = etcs_build_up_time_s(train_length_m, position, brake, extrapolate=extrapolate)
     return np.asarray(2.0 * build_up - ETCS_REACT_S[(position, brake)])
+
+
+def _mixture_lead_s(delays_s: np.ndarray, lags_s: np.ndarray) -> tuple[float, float]:
+    """One dead time and lag [s] with the mean and, where a non-negative dead time allows,
+    the variance of the mixture of the groups' dead-time-plus-lag step responses."""
+    means = delays_s + lags_s
+    mean = float(means.mean())
+    variance = float(np.mean(lags_s**2) + np.mean(means**2) - mean**2)
+    lag = min(float(np.sqrt(max(variance, 0.0))), mean)
+    return mean - lag, lag

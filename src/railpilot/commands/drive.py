@@ -4,6 +4,7 @@ onboard driving system (docs/onboard.md, "railpilot drive")."""
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -38,16 +39,17 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--tsr",
         action="append",
         default=[],
-        metavar="START_KM:END_KM:KMH",
-        help="a temporary speed restriction (repeatable)",
+        metavar="START_KM:END_KM:KMH[@SET_S]",
+        help="a temporary speed restriction, received SET_S s after the departure from "
+        "--from (default 0: known at departure; repeatable)",
     )
     p.add_argument(
         "--target",
         action="append",
         default=[],
-        type=float,
-        metavar="KM",
-        help="a signal held at red: a target point (repeatable)",
+        metavar="KM[@SET_S[:CLEAR_S]]",
+        help="a signal held at red (a target point), from SET_S until CLEAR_S s after the "
+        "departure from --from (default: from the start, never cleared; repeatable)",
     )
     p.add_argument(
         "--margin",
@@ -61,21 +63,46 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.set_defaults(func=run)
 
 
-def parse_tsr(text: str) -> tuple[float, float, float]:
-    """``START_KM:END_KM:KMH`` -> (start [m], end [m], limit [m/s])."""
-    parts = text.split(":")
+def parse_tsr(text: str) -> tuple[float, float, float, float]:
+    """``START_KM:END_KM:KMH[@SET_S]`` -> (start [m], end [m], limit [m/s], set [s])."""
+    body, _, when = text.partition("@")
+    allowed = "START_KM:END_KM:KMH[@SET_S], numbers, SET_S >= 0"
     try:
-        start, end, kmh = (float(p) for p in parts)
+        start, end, kmh = (float(p) for p in body.split(":"))
+        set_s = float(when) if when else 0.0
     except ValueError:
-        raise ConfigError("--tsr", text, "START_KM:END_KM:KMH, three numbers") from None
+        raise ConfigError("--tsr", text, allowed) from None
     if not (start < end and 0 < kmh <= 200):
         raise ConfigError("--tsr", text, "START_KM < END_KM and a limit in (0, 200] km/h")
-    return float(km_post_to_m(start)), float(km_post_to_m(end)), float(kmh_to_mps(kmh))
+    if not (math.isfinite(set_s) and set_s >= 0):
+        raise ConfigError("--tsr", text, allowed)
+    return (
+        float(km_post_to_m(start)),
+        float(km_post_to_m(end)),
+        float(kmh_to_mps(kmh)),
+        set_s,
+    )
+
+
+def parse_target(text: str) -> tuple[float, float, float]:
+    """``KM[@SET_S[:CLEAR_S]]`` -> (signal [m], set [s], clear [s]; inf: never)."""
+    km, _, when = text.partition("@")
+    set_text, _, clear_text = when.partition(":")
+    allowed = "KM[@SET_S[:CLEAR_S]], numbers, 0 <= SET_S < CLEAR_S"
+    try:
+        signal = float(km)
+        set_s = float(set_text) if set_text else 0.0
+        clear_s = float(clear_text) if clear_text else math.inf
+    except ValueError:
+        raise ConfigError("--target", text, allowed) from None
+    if not (math.isfinite(signal) and math.isfinite(set_s) and 0 <= set_s < clear_s):
+        raise ConfigError("--target", text, allowed)
+    return float(km_post_to_m(signal)), set_s, clear_s
 
 
 def run(args: argparse.Namespace) -> int:
     from railpilot.line import load_line
-    from railpilot.onboard.drive import TsrRequest, drive, train_preset
+    from railpilot.onboard.drive import TargetRequest, TsrRequest, drive, train_preset
 
     # every input is checked before anything runs or is written
     tsrs = tuple(TsrRequest(*parse_tsr(t)) for t in args.tsr)
@@ -89,7 +116,7 @@ def run(args: argparse.Namespace) -> int:
         except LineError as exc:
             ids = ", ".join(str(s.id) for s in line.stations)
             raise ConfigError(name, station, f"a station id of {line.name}: {ids}") from exc
-    targets = tuple(float(km_post_to_m(k)) for k in args.target)
+    targets = tuple(TargetRequest(*parse_target(t)) for t in args.target)
     if args.timetable is not None:
         from railpilot.onboard.timetable import load_timetable
 
@@ -102,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         args.to_station,
         running_time_s=args.running_time,
         tsrs=tsrs,
-        targets_m=targets,
+        targets=targets,
         margin_kmh=args.margin,
     )
     summary = outcome.summary()
@@ -139,6 +166,7 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
     from railpilot.onboard.drive import drive
 
     results = []
+    clock_s = 0.0  # since the departure from --from (no dwell: the timetable has none)
     for section in sections:
         log(f"section {section.from_id} -> {section.to_id} ({section.running_time_s:.0f} s)")
         outcome = drive(
@@ -148,9 +176,11 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
             section.to_id,
             running_time_s=section.running_time_s,
             tsrs=tsrs,
-            targets_m=targets,
+            targets=targets,
             margin_kmh=args.margin,
+            start_time_s=clock_s,
         )
+        clock_s += outcome.result.metrics["running_time_s"]
         summary = outcome.summary()
         summary["from"] = section.from_id
         summary["to"] = section.to_id
@@ -177,6 +207,9 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
         "target_points_passed": sum(r["target_points_passed"] for r in results),
         "max_abs_stop_error_m": max(abs(r["stop_error_m"]) for r in results),
         "tsr_checks": [c for r in results for c in r["tsr_checks"]],
+        "replans": [
+            dict(p, section=f"{r['from']}-{r['to']}") for r in results for p in r["replans"]
+        ],
     }
     if args.json:
         print_json(total)

@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         action="append",
         type=controller_argument,
         metavar="NAME",
-        help="controller to sweep (pid, smarc, qsmc, or module:Name for your own); "
+        help="controller to sweep (pid, smarc, qsmc, pstop, or module:Name for your own); "
         "repeat for several (default: the file's)",
     )
     p.add_argument(

@@ -21,7 +21,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "--controller",
         type=controller_argument,
         metavar="NAME",
-        help="override the scenario's controller (pid, smarc, qsmc for braking scenarios; "
+        help="override the scenario's controller (pid, smarc, qsmc, pstop for braking scenarios; "
         "open_loop, pid, fuzzy, fuzzy_pi for eddy-brake ones; module:Name or "
         "path/to/file.py:Name for your own, docs/architecture.md)",
     )

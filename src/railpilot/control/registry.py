@@ -20,9 +20,15 @@ from railpilot.errors import ConfigError
 
 from .base import Controller
 from .pid import TrackingPID, pid_ato_step
+from .pstop import PredictiveStop, pstop_ato_step
 from .qsmc import QSMC, qsmc_ato_step
 from .smarc import SMARC, smarc_ato_step
-from .tuning import pid_tuning_default, qsmc_tuning_default, smarc_tuning_default
+from .tuning import (
+    pid_tuning_default,
+    pstop_tuning_default,
+    qsmc_tuning_default,
+    smarc_tuning_default,
+)
 
 #: ``tuning(theta_s, lag_s, control_period_s) -> constructor keywords``: the documented
 #: rule for a plant ``exp(-theta s) / (s (lag s + 1))`` seen every control period.
@@ -46,6 +52,7 @@ CONTROLLERS: dict[str, ControllerEntry] = {
         ControllerEntry("pid", TrackingPID, pid_ato_step, pid_tuning_default),
         ControllerEntry("smarc", SMARC, smarc_ato_step, smarc_tuning_default),
         ControllerEntry("qsmc", QSMC, qsmc_ato_step, qsmc_tuning_default),
+        ControllerEntry("pstop", PredictiveStop, pstop_ato_step, pstop_tuning_default),
     )
 }
 

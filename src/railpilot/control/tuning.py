@@ -171,3 +171,9 @@ def smarc_tuning_default(theta_s: float, lag_s: float, control_period_s: float) 
 def qsmc_tuning_default(theta_s: float, lag_s: float, control_period_s: float) -> dict[str, Any]:
     """QSMC by :func:`qsmc_defaults`."""
     return dict(qsmc_defaults(theta_s, lag_s, control_period_s))
+
+
+def pstop_tuning_default(theta_s: float, lag_s: float, control_period_s: float) -> dict[str, Any]:
+    """PredictiveStop: the ATO's brake model is its model; its two gains are fixed
+    dimensionless numbers (the constructor's defaults), the same for every train."""
+    return dict(sigma=theta_s, tau=lag_s)

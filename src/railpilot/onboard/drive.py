@@ -23,6 +23,7 @@ import numpy as np
 
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
+from railpilot.control.pstop import PredictiveStop, retarget
 from railpilot.errors import ConfigError
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link.events import AppliedTsr
@@ -37,21 +38,32 @@ from railpilot.onboard.mrsp import (
     most_restrictive_profile,
     travelled_m,
 )
-from railpilot.onboard.planner import DrivingTrain, PlannedCurve, fastest, plan, section
+from railpilot.onboard.planner import (
+    DEFAULT_STEP_M,
+    DrivingTrain,
+    PlannedCurve,
+    Section,
+    fastest,
+    plan,
+    section,
+)
 from railpilot.onboard.supervision import SupervisionCurve, supervision_curve
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.result import SimResult
-from railpilot.sim.run import simulate
-from railpilot.units import kmh_to_mps, mps_to_kmh
+from railpilot.sim.stepper import Stepper
+from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps, mps_to_kmh
 from railpilot.vehicle.line import Line, Segment
-from railpilot.vehicle.profile import ResistanceTable, elevation_table
+from railpilot.vehicle.profile import ResistanceTable, elevation_table, mean_specific_resistance
 from railpilot.vehicle.traction import hxd1_locomotive
 from railpilot.vehicle.train import Train
 
 #: the running-time supplement over the fastest run when none is given
 DEFAULT_SUPPLEMENT = 0.10
+#: the onboard aims this far short of a target stop [m]: the heavy-haul precise stop's
+#: tolerance (issue 10), so it never ends beyond the end of authority
+TARGET_STOP_MARGIN_M = 2.0
 #: the plan keeps this far below the MRSP [km/h], room for the ATO's tracking error (a
 #: production ATO's target speed sits below the permitted speed the same way)
 DEFAULT_MARGIN_KMH = 5.0
@@ -90,7 +102,7 @@ def heavy_haul_loaded() -> TrainPreset:
         locomotive=hxd1_locomotive(),
         traction_lag_s=1.0,
         air=BrakePipeBrake(max_decel_mps2=0.5),
-        handover_kmh=50.0,
+        handover_kmh=0.0,
     )
     return TrainPreset("heavy-haul-loaded", "freight_loaded", train, brake)
 
@@ -108,11 +120,38 @@ def train_preset(name: str) -> TrainPreset:
 
 @dataclass(frozen=True)
 class TsrRequest:
-    """A TSR as the command line gives it: km-post range [m] and limit [m/s]."""
+    """A TSR as the command line gives it: km-post range [m] and limit [m/s], received by
+    the onboard ``set_s`` [s] after the run's time origin (0: known at departure)."""
 
     start_m: float
     end_m: float
     limit_mps: float
+    set_s: float = 0.0
+
+
+@dataclass(frozen=True)
+class TargetRequest:
+    """A signal held at red at km post ``signal_m`` [m]: a target point the onboard
+    receives ``set_s`` [s] after the run's time origin and that clears at ``clear_s``
+    (the train ahead has moved on; ``inf``: never)."""
+
+    signal_m: float
+    set_s: float = 0.0
+    clear_s: float = math.inf
+
+    def active(self, t_s: float) -> bool:
+        return self.set_s <= t_s < self.clear_s
+
+
+@dataclass(frozen=True)
+class Replan:
+    """The onboard re-planned at ``time_s`` [s, from the departure] at ``from_m`` [m from
+    the departure stop] because ``reason``; ``plan`` in metres from ``from_m``."""
+
+    time_s: float
+    from_m: float
+    reason: str
+    plan: PlannedCurve
 
 
 @dataclass(frozen=True)
@@ -126,12 +165,21 @@ class DriveOutcome:
     arrival_m: float
     mrsp: Mrsp
     static: SpeedProfile
-    target_signals_m: tuple[float, ...]
     plan: PlannedCurve
     result: SimResult
     tsr_checks: tuple[dict[str, Any], ...]
     train_length_m: float
     supervision: tuple[SupervisionCurve, ...] = ()
+    #: the MRSP in force from each time [s from the departure] on (the first from 0)
+    mrsp_timeline: tuple[tuple[float, Mrsp], ...] = ()
+    #: the signals held at red, and when (each target point set, then cleared)
+    target_requests: tuple[TargetRequest, ...] = ()
+    replans: tuple[Replan, ...] = ()
+
+    @property
+    def target_signals_m(self) -> tuple[float, ...]:
+        """Km posts [m] of the signals held at red."""
+        return tuple(r.signal_m for r in self.target_requests)
 
     @property
     def targets(self) -> tuple[TargetStop, ...]:
@@ -147,17 +195,25 @@ class DriveOutcome:
         r = self.result
         x = self.km_post(r["position_m"])
         v = r["speed_mps"]
-        head_limit = self.mrsp.at(x)
+        t = r["time_s"]
         tail = x - (1.0 if self.direction == UP else -1.0) * self.train_length_m
-        tail_limit = self.mrsp.at(tail)
+        # each sample against the MRSP in force when it was taken
+        timeline = self.mrsp_timeline or ((0.0, self.mrsp),)
+        head_limit = np.empty_like(x)
+        tail_limit = np.empty_like(x)
+        starts = [start for start, _ in timeline] + [np.inf]
+        for (start, mrsp), until in zip(timeline, starts[1:], strict=True):
+            now = (t >= start) & (t < until)
+            head_limit[now] = mrsp.at(x[now])
+            tail_limit[now] = mrsp.at(tail[now])
         moving = v > 0
         head_over = np.where(moving, v - head_limit, -np.inf)
         tail_over = np.where(moving, v - tail_limit, -np.inf)
-        passed = sum(
-            1
-            for signal in self.target_signals_m
-            if np.any(travelled_m(x, self.direction, signal) > 0.0)
-        )
+        passed = 0
+        for request in self.target_requests:
+            held = (t >= request.set_s) & (t < request.clear_s)
+            beyond = travelled_m(x, self.direction, request.signal_m) > 0.0
+            passed += int(np.any(held & beyond))
         metrics = r.metrics
         s_run = r["position_m"]
         above = np.zeros(s_run.shape, dtype=bool)
@@ -191,6 +247,14 @@ class DriveOutcome:
             },
             "target_points_passed": passed,
             "tsr_checks": list(self.tsr_checks),
+            "replans": [
+                {
+                    "time_s": p.time_s,
+                    "at_km": km_post_m(p.from_m, self.direction, self.departure_m).item() / 1000.0,
+                    "reason": p.reason,
+                }
+                for p in self.replans
+            ],
         }
 
 
@@ -202,16 +266,21 @@ def drive(
     *,
     running_time_s: float | None = None,
     tsrs: tuple[TsrRequest, ...] = (),
-    targets_m: tuple[float, ...] = (),
+    targets: tuple[TargetRequest, ...] = (),
     margin_kmh: float = DEFAULT_MARGIN_KMH,
     dt_s: float = 0.1,
+    start_time_s: float = 0.0,
 ) -> DriveOutcome:
     """Plan and drive ``preset`` from station ``from_station`` to ``to_station`` (ids).
 
-    ``running_time_s`` None: the fastest run plus 10 %. ``tsrs``: restrictions in force for
-    the whole run; ``targets_m``: km posts [m] of signals held at red (target points), the
-    stop moved back by the safety distance at the line speed. ``margin_kmh``: the plan's
-    ceiling is ``max(C - margin, C / 2)`` of the whole-train MRSP ``C``.
+    ``running_time_s`` None: the fastest run plus 10 %. ``tsrs`` and ``targets``: the
+    restrictions and the signals held at red (target points; the stop moved back by the
+    safety distance at the line speed), each known to the onboard from its ``set_s``;
+    ``start_time_s``: the departure on the same clock [s]. What the onboard receives
+    while running makes it re-plan from where the train is for the time that remains (and
+    check a TSR there, as the paper does); a target point that clears lets it go on.
+    ``margin_kmh``: the plan's ceiling is ``max(C - margin, C / 2)`` of the whole-train
+    MRSP ``C``.
     """
     if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
         raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
@@ -221,63 +290,217 @@ def drive(
     if end.id == start.id:
         raise ConfigError("--to", to_station, "a station other than --from")
     departure, arrival = start.stop_m(direction), end.stop_m(direction)
-    length_m = float(travelled_m(arrival, direction, departure))
-    static = SpeedProfile(*line.static_limit(preset.category, direction))
-    applied = tuple(
-        apply_tsr(
-            TsrSet(i + 1, t.start_m, t.end_m, t.limit_mps, 0.0, 4.0e9),
-            preset.train.length_m,
-            direction,
-        )
-        for i, t in enumerate(tsrs)
+    route = _Route(
+        line,
+        preset,
+        direction,
+        departure,
+        float(travelled_m(arrival, direction, departure)),
+        kmh_to_mps(margin_kmh),
+        tsrs,
+        targets,
+        start_time_s,
     )
-    line_speed = float(np.max(static.speeds_mps[np.isfinite(static.speeds_mps)]))
-    stops = tuple(
-        TargetStop.from_target_point(
-            TargetPoint(i + 1, signal, TargetReason.TRAIN_AHEAD),
-            float(safety_distance_m(line_speed, preset.train.max_service_decel_mps2)),
-            direction,
-        )
-        for i, signal in enumerate(targets_m)
-    )
-    mrsp = most_restrictive_profile(static, applied, stops, direction=direction)
-    # the planner's ceiling in the train's coordinate, from the departure to the arrival
-    # stop or the first target stop before it
-    end_s = length_m
-    for stop in mrsp.targets:
-        s = float(travelled_m(stop.position_m, direction, departure))
-        if 0.0 < s < end_s:
-            end_s = s
-    edges_s, ceiling = _whole_train_ceiling(mrsp, direction, departure, end_s, preset)
-    ceiling = np.maximum(ceiling - kmh_to_mps(margin_kmh), ceiling / 2.0)
-    vehicle_line = train_line(line, preset.category, direction, departure)
-    table = elevation_table(vehicle_line)
-    sec = section(end_s, (edges_s, ceiling), table, train_length_m=preset.train.length_m)
-    quickest = fastest(preset.driving, sec)
+    mrsp = route.mrsp_at(0.0)
+    end_s, quickest_sec = route.section_from(mrsp, 0.0, 0.0)
+    quickest = fastest(preset.driving, quickest_sec)
+    # the running time is the station pair's; a plan to a target stop gets its share
     target_time = (
-        quickest.running_time_s * (1.0 + DEFAULT_SUPPLEMENT)
+        quickest.running_time_s * (1.0 + DEFAULT_SUPPLEMENT) * route.length_m / end_s
         if running_time_s is None
         else float(running_time_s)
     )
-    planned = plan(preset.driving, sec, target_time)
-    checks = tuple(_tsr_check(preset, table, planned, tsr, direction, departure) for tsr in applied)
-    curves = _supervision(preset, table, mrsp, direction, departure, end_s)
-    result = _simulate(preset, vehicle_line, planned, dt_s)
+    planned = route.plan_to(end_s, quickest_sec, target_time, 0.0)
+    known = route.tsrs_at(0.0)
+    checks = [
+        _tsr_check(preset, route.table, planned, tsr, direction, departure)
+        for tsr in known
+        if route.entry_ahead(tsr, 0.0)
+    ]
+    stepper = Stepper(
+        _drive_scenario(preset, route.vehicle_line, planned, dt_s),
+        stop_controller(preset, route.vehicle_line, end_s, dt_s),
+    )
+    timeline = [(0.0, mrsp)]
+    replans: list[Replan] = []
+    for t_event in route.event_times():
+        stepper.advance_to(t_event)
+        arrived = stepper.at_rest and end_s >= route.length_m
+        if arrived or stepper.step * dt_s >= stepper.scenario.sim.duration_s:
+            break  # what comes later concerns the next section
+        new = route.mrsp_at(t_event)
+        if new == timeline[-1][1]:
+            continue
+        s_now, v_now = stepper.position_m, stepper.speed_mps
+        now_known = route.tsrs_at(t_event)
+        received = [t for t in now_known if t not in known]
+        known = now_known
+        timeline.append((t_event, new))
+        next_end_s = route.next_stop_s(new, s_now)
+        if next_end_s - s_now < 50.0:
+            continue  # stopped at (or just before) that stop already
+        end_s, sec = route.section_from(new, s_now, v_now)
+        remaining = max(target_time - t_event, 1.0)
+        again = route.plan_to(end_s, sec, remaining, s_now)
+        reason = _what_changed(timeline[-2][1], new, bool(received))
+        replans.append(Replan(t_event, s_now, reason, again))
+        for tsr in (t for t in received if route.entry_ahead(t, s_now)):
+            # the paper's check where the train is when the TSR arrives
+            checks.append(
+                _tsr_check_now(preset, route.table, tsr, direction, departure, s_now, v_now)
+            )
+        stepper.replace_reference(PlannedProfile(again.s_m + s_now, again.speed_mps))
+        retarget(stepper.controller_params, stepper.controller_state, end_s)
+        if stepper.at_rest:
+            stepper.restart()
+    stepper.run_to_end()
+    final_mrsp = timeline[-1][1]
+    curves = _supervision(preset, route.table, final_mrsp, direction, departure, end_s)
     return DriveOutcome(
         from_station,
         to_station,
         direction,
         departure,
         km_post_m(end_s, direction, departure).item(),
-        mrsp,
-        static,
-        tuple(float(t) for t in targets_m),
+        final_mrsp,
+        route.static,
         planned,
-        result,
-        checks,
+        stepper.result(),
+        tuple(checks),
         preset.train.length_m,
         curves,
+        tuple(timeline),
+        tuple(targets),
+        tuple(replans),
     )
+
+
+def _what_changed(before: Mrsp, after: Mrsp, tsr_received: bool) -> str:
+    """Why the onboard re-planned, in words for the log and the summary."""
+    reasons = []
+    if tsr_received:
+        reasons.append("TSR received")
+    before_ids = {t.target_id for t in before.targets}
+    after_ids = {t.target_id for t in after.targets}
+    if after_ids - before_ids:
+        reasons.append("target point set")
+    if before_ids - after_ids:
+        reasons.append("target point cleared")
+    return ", ".join(reasons) or "restrictions changed"
+
+
+@dataclass(frozen=True)
+class _Route:
+    """One station pair as the onboard sees it: the line, the train, what it is told."""
+
+    line: RailLine
+    preset: TrainPreset
+    direction: TravelDirection
+    departure_m: float
+    length_m: float
+    margin_mps: float
+    tsrs: tuple[TsrRequest, ...]
+    targets: tuple[TargetRequest, ...]
+    start_time_s: float
+
+    @property
+    def static(self) -> SpeedProfile:
+        return SpeedProfile(*self.line.static_limit(self.preset.category, self.direction))
+
+    @property
+    def vehicle_line(self) -> Line:
+        return train_line(self.line, self.preset.category, self.direction, self.departure_m)
+
+    @property
+    def table(self) -> ResistanceTable:
+        return elevation_table(self.vehicle_line)
+
+    def event_times(self) -> list[float]:
+        """When what the onboard knows changes [s from this departure], after it."""
+        times = {t.set_s for t in self.tsrs}
+        for target in self.targets:
+            times |= {target.set_s, target.clear_s}
+        return sorted(
+            t - self.start_time_s for t in times if math.isfinite(t) and t > self.start_time_s
+        )
+
+    def tsrs_at(self, t_s: float) -> tuple[AppliedTsr, ...]:
+        """The TSRs the onboard knows ``t_s`` [s] after departing, as it applies them."""
+        now = t_s + self.start_time_s
+        train = self.preset.train
+        return tuple(
+            apply_tsr(
+                TsrSet(i + 1, t.start_m, t.end_m, t.limit_mps, 0.0, 4.0e9),
+                train.length_m,
+                self.direction,
+            )
+            for i, t in enumerate(self.tsrs)
+            if t.set_s <= now
+        )
+
+    def mrsp_at(self, t_s: float) -> Mrsp:
+        """The MRSP of what the onboard knows ``t_s`` [s] after departing."""
+        now = t_s + self.start_time_s
+        train = self.preset.train
+        static = self.static
+        line_speed = float(np.max(static.speeds_mps[np.isfinite(static.speeds_mps)]))
+        safety = float(safety_distance_m(line_speed, train.max_service_decel_mps2))
+        stops = tuple(
+            TargetStop.from_target_point(
+                TargetPoint(i + 1, target.signal_m, TargetReason.TRAIN_AHEAD),
+                safety,
+                self.direction,
+            )
+            for i, target in enumerate(self.targets)
+            if target.active(now)
+        )
+        return most_restrictive_profile(static, self.tsrs_at(t_s), stops, direction=self.direction)
+
+    def section_from(self, mrsp: Mrsp, s0: float, v0: float) -> tuple[float, Section]:
+        """The planner's section from ``s0`` [m from the departure] at ``v0`` [m/s] to the
+        arrival stop or the first target stop before it, and where that end is."""
+        end_s = self.next_stop_s(mrsp, s0)
+        edges, ceiling = _whole_train_ceiling(
+            mrsp, self.direction, self.departure_m, s0, end_s, self.preset
+        )
+        ceiling = np.maximum(ceiling - self.margin_mps, ceiling / 2.0)
+        length = max(end_s - s0, 3.0 * DEFAULT_STEP_M)
+        sec = section(
+            length,
+            (edges - s0, ceiling),
+            self.table,
+            start_m=s0,
+            train_length_m=self.preset.train.length_m,
+            initial_speed_mps=v0,
+        )
+        return end_s, sec
+
+    def entry_ahead(self, tsr: AppliedTsr, s0: float) -> bool:
+        """Does the train meet the restriction's zone between ``s0`` [m from the departure]
+        and the arrival (a TSR behind it or beyond the station is not this section's)?"""
+        entry_m = tsr.zone_start_m if self.direction == UP else tsr.zone_end_m
+        exit_m = tsr.zone_end_m if self.direction == UP else tsr.zone_start_m
+        entry_s = float(travelled_m(entry_m, self.direction, self.departure_m))
+        exit_s = float(travelled_m(exit_m, self.direction, self.departure_m))
+        return exit_s > s0 and entry_s < self.length_m
+
+    def next_stop_s(self, mrsp: Mrsp, s0: float) -> float:
+        """Where the train is to stop next [m from the departure]: the arrival, or the
+        first target stop ahead of ``s0``, aimed short of the end of authority by the
+        stop's tolerance (a precise stop lands within it either side)."""
+        end_s = self.length_m
+        for stop in mrsp.targets:
+            s = float(travelled_m(stop.position_m, self.direction, self.departure_m))
+            s -= TARGET_STOP_MARGIN_M
+            if s0 < s < end_s:
+                end_s = s
+        return end_s
+
+    def plan_to(self, end_s: float, sec: Section, time_s: float, s0: float) -> PlannedCurve:
+        """The plan of ``sec``: for ``time_s`` if it ends at the arrival; to a target stop,
+        for that stop's share of the time by distance (the target may clear)."""
+        share = (end_s - s0) / max(self.length_m - s0, 1e-9)
+        return plan(self.preset.driving, sec, max(time_s * min(share, 1.0), 1.0))
 
 
 def _supervision(
@@ -296,15 +519,18 @@ def _supervision(
     curves = []
     for decrease in mrsp.decreases():
         target_s = float(travelled_m(decrease.position_m, direction, departure_m))
-        if 0.0 < target_s <= end_s + 1e-6:
-            curves.append(
-                supervision_curve(preset.braking, table, min(target_s, end_s), decrease.to_mps)
-            )
+        if 0.0 < target_s <= end_s + TARGET_STOP_MARGIN_M + 1e-6:
+            curves.append(supervision_curve(preset.braking, table, target_s, decrease.to_mps))
     return tuple(curves)
 
 
 def _whole_train_ceiling(
-    mrsp: Mrsp, direction: TravelDirection, departure_m: float, end_s: float, preset: TrainPreset
+    mrsp: Mrsp,
+    direction: TravelDirection,
+    departure_m: float,
+    start_s: float,
+    end_s: float,
+    preset: TrainPreset,
 ) -> tuple[np.ndarray, np.ndarray]:
     """The planner's ceiling: at each head position the lowest MRSP under the whole train.
 
@@ -313,12 +539,19 @@ def _whole_train_ceiling(
     lower limit. On a 10 m grid: ``min`` of the MRSP over ``[s - L, s]``.
     """
     step = 10.0
-    n = max(math.ceil(end_s / step), 2)
-    grid = np.linspace(0.0, end_s, n + 1)
+    n = max(math.ceil((end_s - start_s) / step), 2)
+    grid = np.linspace(start_s, end_s, n + 1)
     mids = 0.5 * (grid[:-1] + grid[1:])
     speeds = mrsp.at(km_post_m(mids, direction, departure_m))
-    window = max(math.ceil(preset.train.length_m / (end_s / n)), 1)
-    padded = np.concatenate([np.full(window, speeds[0]), speeds])
+    cell = (end_s - start_s) / n
+    window = max(math.ceil(preset.train.length_m / cell), 1)
+    if start_s > 0.0:
+        # re-planned on the move: the tail still occupies the line behind the head
+        behind_s = start_s - cell * (np.arange(window, 0, -1) - 0.5)
+        behind = mrsp.at(km_post_m(behind_s, direction, departure_m))
+    else:
+        behind = np.full(window, speeds[0])  # at the departure stop, in the station
+    padded = np.concatenate([behind, speeds])
     lowest = np.lib.stride_tricks.sliding_window_view(padded, window + 1).min(axis=1)
     return grid, lowest[: speeds.size]
 
@@ -338,6 +571,51 @@ def train_line(
         )
 
     return Line(gradients=shift(whole.gradients), curves=shift(whole.curves))
+
+
+def _tsr_check_now(
+    preset: TrainPreset,
+    table: ResistanceTable,
+    tsr: AppliedTsr,
+    direction: TravelDirection,
+    departure_m: float,
+    s_m: float,
+    v_mps: float,
+) -> dict[str, Any]:
+    """The paper's check for a TSR received mid-run: from where the train is, at its speed."""
+    entry_m = tsr.zone_start_m if direction == UP else tsr.zone_end_m
+    entry_s = float(travelled_m(entry_m, direction, departure_m))
+    out: dict[str, Any] = {
+        "session": tsr.session,
+        "start_km": tsr.start_m / 1000.0,
+        "end_km": tsr.end_m / 1000.0,
+        "limit_kmh": float(mps_to_kmh(tsr.limit_mps)),
+        "checked_at_km": float(km_post_m(s_m, direction, departure_m)) / 1000.0,
+        "speed_kmh": float(mps_to_kmh(v_mps)),
+    }
+    if entry_s <= s_m or v_mps <= tsr.limit_mps:
+        # in it already, or slow enough: nothing to brake for
+        out.update({"regen_sufficient": True, "air_brake_from_km": None, "feasible": True})
+        return out
+    check = tsr_check(preset.braking, table, s_m, v_mps, entry_s, tsr.limit_mps)
+    return out | _check_fields(check, direction, departure_m)
+
+
+def _check_fields(
+    check: TsrCheck, direction: TravelDirection, departure_m: float
+) -> dict[str, Any]:
+    air = (
+        None
+        if check.air_brake_from_m is None
+        else float(km_post_m(check.air_brake_from_m, direction, departure_m)) / 1000.0
+    )
+    return {
+        "distance_m": check.distance_m,
+        "regen_distance_m": None if math.isinf(check.regen_distance_m) else check.regen_distance_m,
+        "regen_sufficient": check.regen_sufficient,
+        "air_brake_from_km": air,
+        "feasible": check.feasible,
+    }
 
 
 def _tsr_check(
@@ -373,39 +651,82 @@ def _tsr_check(
     if check is None:
         out.update({"regen_sufficient": True, "air_brake_from_km": None, "feasible": True})
         return out
-    air = (
-        None
-        if check.air_brake_from_m is None
-        else float(km_post_m(check.air_brake_from_m, direction, departure_m)) / 1000.0
-    )
-    out.update(
-        {
-            "speed_kmh": float(mps_to_kmh(float(np.interp(at_s, s, v)))),
-            "distance_m": check.distance_m,
-            "regen_distance_m": None
-            if math.isinf(check.regen_distance_m)
-            else check.regen_distance_m,
-            "regen_sufficient": check.regen_sufficient,
-            "air_brake_from_km": air,
-            "feasible": check.feasible,
-        }
-    )
-    return out
+    out["speed_kmh"] = float(mps_to_kmh(float(np.interp(at_s, s, v))))
+    return out | _check_fields(check, direction, departure_m)
 
 
-def _simulate(
+def _drive_scenario(
     preset: TrainPreset, vehicle_line: Line, planned: PlannedCurve, dt_s: float
-) -> SimResult:
-    """The simulation core driving the planned curve (ATO by distance, PID)."""
-    reference = PlannedProfile(planned.s_m, planned.speed_mps)
-    scenario = Scenario(
+) -> Scenario:
+    """The simulation core driving the planned curve: the ATO tracks it by distance with
+    the precise-stop controller (control/pstop.py) and stops at its end."""
+    return Scenario(
         name="drive",
         train=preset.train,
         line=vehicle_line,
         brake=preset.brake,
-        reference=reference,
-        ato=ATOModel(reference="distance", gradient_feedforward=True, preview_s=30.0),
-        controller=ControllerSpec(name="pid"),
-        sim=SimSettings(dt_s=dt_s, duration_s=max(600.0, 1.6 * planned.running_time_s)),
+        reference=PlannedProfile(planned.s_m, planned.speed_mps),
+        ato=ATOModel(
+            reference="distance",
+            gradient_feedforward=True,
+            # the plan's acceleration is fed forward by the fast path's lead (traction and
+            # regeneration); the controller leads its air brake itself
+            brake_delay_s=0.0,
+            brake_lag_s=preset.brake.traction_lag_s,
+        ),
+        controller=ControllerSpec(name="pstop"),
+        # room for a wait at a target point and the plans after it
+        sim=SimSettings(dt_s=dt_s, duration_s=max(900.0, 2.5 * planned.running_time_s)),
     )
-    return simulate(scenario)
+
+
+def stop_controller(
+    preset: TrainPreset, vehicle_line: Line, stop_m: float, control_period_s: float
+) -> PredictiveStop:
+    """The precise-stop controller with this train's models (its one set of gains).
+
+    Fast path: traction and regeneration (the drive's lag), braking up to the regenerative
+    envelope, handed over to the air brake below the handover speed; slow path: the whole
+    train's air brake, application and release (brakes/brake_pipe.py ``train_lead_s``,
+    ``train_release_lead_s``); the resistance model the ATO uses (Davis and the line's
+    gradients and curves averaged over the train, every 20 m) for the prediction.
+    """
+    train = preset.train
+    brake = preset.brake
+    air_delay_s, air_lag_s = brake.train_lead_s(train.length_m)
+    release_delay_s, release_lag_s = brake.air.train_release_lead_s(train.length_m)
+    regen = brake.locomotive.regen
+    handover_mps = kmh_to_mps(brake.handover_kmh)
+    handed_over = handover_mps > regen.fade_below_mps
+    # N/kN -> m/s^2 on the effective mass, as the ATO's feed-forward (sim/engine.py)
+    per_n_per_kn = G_MPS2 / 1000.0 / (1.0 + train.rotating_mass_factor)
+    table = elevation_table(vehicle_line)
+    grid = np.arange(-train.length_m, stop_m + 1_000.0, 20.0)
+    line = per_n_per_kn * np.array(
+        [
+            mean_specific_resistance(
+                table.edges_m, table.cumulative, table.values_n_per_kn, x, train.length_m, 1.0
+            )
+            for x in grid
+        ]
+    )
+    return PredictiveStop(
+        air_delay_s,
+        air_lag_s,
+        stop_m=stop_m,
+        sigma_release=release_delay_s,
+        tau_release=release_lag_s,
+        sigma_track=control_period_s / 2.0,
+        tau_track=brake.traction_lag_s,
+        stop_decel=preset.driving.brake_mps2,
+        fast_limit=regen.max_force_n / train.effective_mass_kg,
+        fast_full_mps=handover_mps if handed_over else regen.fade_below_mps,
+        fast_zero_mps=regen.fade_below_mps if handed_over else 0.0,
+        davis_mps2=(
+            train.davis_a0 * per_n_per_kn,
+            train.davis_a1 * KMH_PER_MPS * per_n_per_kn,
+            train.davis_a2 * KMH_PER_MPS**2 * per_n_per_kn,
+        ),
+        line_profile=(grid, line),
+        output_limits=(-train.max_service_decel_mps2, train.max_service_decel_mps2),
+    )

@@ -339,14 +339,18 @@ def section(
     direction: float = FORWARD,
     train_length_m: float = 0.0,
     step_m: float = DEFAULT_STEP_M,
+    initial_speed_mps: float = 0.0,
 ) -> Section:
     """The planner's grid from the departure stop at ``start_m`` [m] over ``length_m`` [m].
 
     ``ceiling``: ``(edges_m, speeds_mps)`` of the most restrictive speed profile in the
     train's own coordinate (distance from the departure stop), for the whole train;
     ``table`` the line's resistance for ``direction`` (length-averaged over
-    ``train_length_m``). The ceiling is 0 at both ends (the stops).
+    ``train_length_m``). The ceiling is 0 at the end (the stop) and, for a train at rest,
+    at the start; a train re-planned on the move starts at ``initial_speed_mps`` [m/s].
     """
+    if not (math.isfinite(initial_speed_mps) and initial_speed_mps >= 0):
+        raise ConfigError("initial_speed_mps", initial_speed_mps, "a speed >= 0 [m/s]")
     if not (math.isfinite(length_m) and length_m > 2 * step_m):
         raise ConfigError("length_m", length_m, f"a section longer than {2 * step_m:g} m")
     if not (math.isfinite(step_m) and 0 < step_m <= 100):
@@ -364,7 +368,7 @@ def section(
     at_edge = np.isin(s, edges[1:-1])
     lower = np.minimum(speeds[idx], speeds[np.clip(idx - 1, 0, speeds.size - 1)])
     c = np.where(at_edge, lower, speeds[idx])
-    c[0] = 0.0
+    c[0] = initial_speed_mps
     c[-1] = 0.0
     x = start_m + direction * s
     w = length_averaged_resistance(table, x, train_length_m, 1.0 if direction >= 0 else -1.0)

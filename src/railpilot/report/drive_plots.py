@@ -34,6 +34,15 @@ def speed_figure(outcome: DriveOutcome) -> Figure:
             label="intervention (full service)" if i == 0 else None,
         )
     ax.plot(x_plan, mps_to_kmh(plan.speed_mps), color="tab:green", lw=1.5, label="planned")
+    for i, replan in enumerate(outcome.replans):
+        ax.plot(
+            outcome.km_post(replan.plan.s_m + replan.from_m) / 1000.0,
+            mps_to_kmh(replan.plan.speed_mps),
+            color="tab:green",
+            lw=1.0,
+            ls="--",
+            label="re-planned (TSR, target point)" if i == 0 else None,
+        )
     r = outcome.result
     ax.plot(
         outcome.km_post(r["position_m"]) / 1000.0,
@@ -42,9 +51,15 @@ def speed_figure(outcome: DriveOutcome) -> Figure:
         lw=1.2,
         label="driven",
     )
-    for signal in outcome.target_signals_m:
+    for request in outcome.target_requests:
+        signal = request.signal_m
         ax.axvline(signal / 1000.0, color="k", lw=1.0, ls=":")
-        ax.annotate("red signal", (signal / 1000.0, 5), rotation=90, fontsize=8, ha="right")
+        held = "red signal" + (
+            f" {request.set_s:.0f}-{request.clear_s:.0f} s"
+            if np.isfinite(request.clear_s) or request.set_s > 0
+            else ""
+        )
+        ax.annotate(held, (signal / 1000.0, 5), rotation=90, fontsize=8, ha="right")
     for i, stop in enumerate(outcome.targets):
         ax.axvline(
             stop.position_m / 1000.0,

@@ -14,7 +14,7 @@ from matplotlib.figure import Figure
 from railpilot.sim.result import SimResult
 from railpilot.units import mps_to_kmh
 
-COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green"}
+COLORS = {"pid": "tab:orange", "smarc": "tab:blue", "qsmc": "tab:green", "pstop": "tab:purple"}
 
 
 def _moving(result: SimResult) -> np.ndarray:

@@ -17,6 +17,7 @@ REPRODUCTIONS: dict[str, str] = {
     "qsmc-stop": "railpilot.reproduce.qsmc_stop",
     "eddy-torque": "railpilot.reproduce.eddy_torque",
     "link-demo": "railpilot.reproduce.link_demo",
+    "precise-stop": "railpilot.reproduce.precise_stop",
 }
 
 

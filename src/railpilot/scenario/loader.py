@@ -38,7 +38,7 @@ The file layout (examples/paper000_smarc_ep.toml is a complete one)::
              regions = [{start_km, end_km, force_kn | accel_mps2}]
     [ato]    mass_t, davis = [a0, a1, a2], brake_delay_s, brake_lag_s,
              reference = "time" | "distance", gradient_feedforward, preview_s
-    [controller]  name = "pid" | "smarc" | "qsmc" | "module:Name" (your own,
+    [controller]  name = "pid" | "smarc" | "qsmc" | "pstop" | "module:Name" (your own,
              control/user.py); [controller.NAME] a built-in's parameters
     [sim]    dt_s, duration_s, control_period_s, record_every
     [realism]  speed_noise_std_mps, speed_resolution_mps, wheel_scale_error, slide_slip,

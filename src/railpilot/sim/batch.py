@@ -180,7 +180,17 @@ def run_batch_kernel(
     """
     empty = np.zeros((0, engine.N_CHANNELS))
     for i in range(start, stop):
-        engine.run_kernel(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
+        row = batch_row(batch, i)
+        engine.run_kernel(
+            row,
+            ctrl_step,
+            brake_step,
+            empty,
+            1,
+            metrics[i],
+            engine.fresh_state(row),
+            row.sim.n_steps,
+        )
 
 
 engine.keep_going_if_the_cache_cannot_save(run_batch_kernel)
@@ -199,7 +209,17 @@ def run_batch_kernel_uncached(
     written to Numba's on-disk cache (which could not find the user's module again)."""
     empty = np.zeros((0, engine.N_CHANNELS))
     for i in range(start, stop):
-        engine.run_kernel_uncached(batch_row(batch, i), ctrl_step, brake_step, empty, 1, metrics[i])
+        row = batch_row(batch, i)
+        engine.run_kernel_uncached(
+            row,
+            ctrl_step,
+            brake_step,
+            empty,
+            1,
+            metrics[i],
+            engine.fresh_state(row),
+            row.sim.n_steps,
+        )
 
 
 def run_batch(
@@ -212,9 +232,17 @@ def run_batch(
     if not binding.parallel_safe:
         empty = np.zeros((0, engine.N_CHANNELS))
         for i in range(runs):
+            row = batch_row(batch, i)
             with binding:
                 engine.run_kernel(
-                    batch_row(batch, i), binding.step, brake_step, empty, 1, metrics[i]
+                    row,
+                    binding.step,
+                    brake_step,
+                    empty,
+                    1,
+                    metrics[i],
+                    engine.fresh_state(row),
+                    row.sim.n_steps,
                 )
         return metrics
     n = max(1, min(threads or os.cpu_count() or 1, runs))

@@ -48,7 +48,39 @@ from railpilot.sim.layout import (
     A_V_CO,
     B_N_BUFFER,
     B_N_STATE,
+    C_A,
+    C_BRAKE_PREV,
+    C_E_ELEC,
+    C_E_FRIC,
+    C_E_TRAC,
+    C_HAS_MOVED,
+    C_MAX_DECEL,
+    C_MAX_JERK,
+    C_MAX_VERR,
+    C_MAX_XERR,
+    C_MOVING,
+    C_N_MOVING,
+    C_N_RECORDS,
+    C_N_UPDATES,
+    C_NEXT_BALISE,
+    C_NEXT_RECORD,
+    C_NEXT_UPDATE,
+    C_RAFF,
+    C_RV,
+    C_RX,
+    C_SLIDE_T,
+    C_SLIDING,
+    C_STEPS_RUN,
+    C_STOP_T,
+    C_SUM_VERR2,
+    C_U,
+    C_V,
+    C_V_MAX,
+    C_VERR_CO,
+    C_X,
+    C_X_ODO,
     D_CONST_N,
+    N_CARRY,
     R_ADHESION,
     R_NOTCHES,
     R_SLIDE_RATIO,
@@ -65,6 +97,7 @@ from railpilot.sim.layout import (
     T_V0,
     T_X0,
     RunInputs,
+    RunState,
 )
 from railpilot.units import G_MPS2, KMH_PER_MPS
 from railpilot.vehicle import profile, resistance
@@ -123,6 +156,44 @@ def _disturbance(
 
 
 @njit(cache=True)
+def fresh_state(inp: RunInputs) -> RunState:
+    """The state of a run before its first step: the train where the scenario puts it,
+    private copies of the controller's and the brake's parameters and state (a step may
+    change its parameters, e.g. the PID's limits follow the ATO's clamp; a batch shares
+    the inputs between runs running in parallel, and the compiled steps get their arrays
+    with reference counts, which a row shared with other threads would contend on every
+    step)."""
+    c = np.zeros(N_CARRY)
+    train = inp.train.p
+    x = train[T_X0]
+    v = train[T_V0]
+    c[C_X] = x
+    c[C_V] = v
+    c[C_X_ODO] = x
+    c[C_MOVING] = 1.0
+    c[C_STOP_T] = np.nan
+    c[C_VERR_CO] = np.nan
+    c[C_V_MAX] = v
+    c[C_HAS_MOVED] = 1.0 if v > 0.0 else 0.0
+    balises = inp.realism.balises
+    next_balise = 0
+    while next_balise < balises.shape[0] and balises[next_balise] <= x:
+        next_balise += 1
+    c[C_NEXT_BALISE] = next_balise
+    c[C_RX] = inp.reference.x[0]
+    c[C_RV] = inp.reference.v[0]
+    c[C_RAFF] = inp.reference.a_ff[0]
+    return RunState(
+        c,
+        inp.controller.p.copy(),
+        inp.controller.s0.copy(),
+        inp.brake.p.copy(),
+        np.zeros(int(inp.brake.sizes[B_N_STATE])),
+        np.zeros(int(inp.brake.sizes[B_N_BUFFER])),
+    )
+
+
+@njit(cache=True)
 def run_kernel(
     inp: RunInputs,
     ctrl_step: Any,
@@ -130,23 +201,26 @@ def run_kernel(
     record: np.ndarray,
     record_every: int,
     metrics: np.ndarray,
+    run: RunState,
+    k_stop: int,
 ) -> None:
-    """Run one scenario; fill ``metrics`` and, if it has rows, ``record``.
+    """Run one scenario from where ``run`` is up to step ``k_stop``; fill ``metrics`` and,
+    if it has rows, ``record``.
 
-    ``inp`` is the run's description (sim/layout.py). ``ctrl_step`` is the controller's
-    compiled step and ``brake_step`` the brake's, with the signatures of control/base.py
-    and brakes/base.py (the entries of their registries, or a user's compiled
-    controller): the loop calls what it is given, nothing else. Inputs are never changed
-    (the controller's parameters and state are copied), so a batch can share them.
+    ``inp`` is the run's description (sim/layout.py); ``run`` its state
+    (:func:`fresh_state` for a run from the start), carried from one call to the next, so
+    a run can stop at a step, have its reference or its controller's parameters changed,
+    and go on (sim/stepper.py); a run in one call ends at ``inp.sim.n_steps``.
+    ``ctrl_step`` is the controller's compiled step and ``brake_step`` the brake's, with
+    the signatures of control/base.py and brakes/base.py (the entries of their registries,
+    or a user's compiled controller): the loop calls what it is given, nothing else.
+    ``inp`` is never changed, so a batch can share it.
     """
     n_steps = inp.sim.n_steps
     dt = inp.sim.dt
     control_every = inp.sim.control_every
     train = inp.train.p
-    # a private copy too: the compiled steps get their arrays with reference counts, and a
-    # count shared with the other threads of a batch (a row of the batch's array) is
-    # contended on every step
-    brake_p = inp.brake.p.copy()
+    brake_p = run.brake_p
     line_edges = inp.line.edges
     line_values = inp.line.values
     line_cumulative = inp.line.cumulative
@@ -161,43 +235,41 @@ def run_kernel(
     real = inp.realism.p
     speed_noise = inp.realism.speed_noise
     balises = inp.realism.balises
-    ctrl_s = inp.controller.s0.copy()
-    # a private copy: a step may change its parameters (the PID's limits follow the
-    # ATO's clamp), and a batch shares them between runs running in parallel
-    ctrl_p = inp.controller.p.copy()
-    brake_s = np.zeros(int(inp.brake.sizes[B_N_STATE]))
-    brake_buf = np.zeros(int(inp.brake.sizes[B_N_BUFFER]))
+    ctrl_s = run.ctrl_s
+    ctrl_p = run.ctrl_p
+    brake_s = run.brake_s
+    brake_buf = run.brake_buf
     m_eff = train[T_MEFF]
     mass = train[T_MASS]
-    x = train[T_X0]
-    v = train[T_V0]
-    x_odo = x
-    a = 0.0
-    brake_prev = 0.0
-    u = 0.0
-    moving = True
-    sliding = False
-    stop_t = np.nan
-    max_verr = 0.0
-    sum_verr2 = 0.0
-    n_moving = 0
-    verr_co = np.nan
-    max_decel = 0.0
-    max_jerk = 0.0
-    max_xerr = 0.0
-    e_elec = 0.0
-    e_fric = 0.0
-    e_trac = 0.0
-    v_max = v
+    c = run.c
+    k_start = int(c[C_STEPS_RUN])
+    x = c[C_X]
+    v = c[C_V]
+    x_odo = c[C_X_ODO]
+    a = c[C_A]
+    brake_prev = c[C_BRAKE_PREV]
+    u = c[C_U]
+    moving = c[C_MOVING] > 0.5
+    sliding = c[C_SLIDING] > 0.5
+    stop_t = c[C_STOP_T]
+    max_verr = c[C_MAX_VERR]
+    sum_verr2 = c[C_SUM_VERR2]
+    n_moving = int(c[C_N_MOVING])
+    verr_co = c[C_VERR_CO]
+    max_decel = c[C_MAX_DECEL]
+    max_jerk = c[C_MAX_JERK]
+    max_xerr = c[C_MAX_XERR]
+    e_elec = c[C_E_ELEC]
+    e_fric = c[C_E_FRIC]
+    e_trac = c[C_E_TRAC]
+    v_max = c[C_V_MAX]
     # a train that starts at rest is held there until its traction overcomes resistance;
     # only a train that has moved can come to its final stop
-    has_moved = v > 0.0
-    slide_t = 0.0
+    has_moved = c[C_HAS_MOVED] > 0.5
+    slide_t = c[C_SLIDE_T]
     n_rec = record.shape[0]
     ctrl_dt = dt * control_every
-    next_balise = 0
-    while next_balise < balises.shape[0] and balises[next_balise] <= x:
-        next_balise += 1
+    next_balise = int(c[C_NEXT_BALISE])
     adhesion_n = real[R_ADHESION] * mass * G
     notches = real[R_NOTCHES]
     by_distance = dist_ref.shape[1] > 0
@@ -225,16 +297,16 @@ def run_kernel(
     # a Monte Carlo run (nothing recorded) ends at the stop: nothing that follows changes
     # a metric (the train is at rest and never moves again)
     stop_at_rest = n_rec == 0
-    steps_run = 0
+    steps_run = int(c[C_STEPS_RUN])
     # counters instead of k % period (an integer modulo every step is slow)
-    next_update = 0
-    n_updates = 0
-    next_record = 0
-    n_records = 0
-    rx = ref_x[0]
-    rv = ref_v[0]
-    raff = ref_a_ff[0]
-    for k in range(n_steps):
+    next_update = int(c[C_NEXT_UPDATE])
+    n_updates = int(c[C_N_UPDATES])
+    next_record = int(c[C_NEXT_RECORD])
+    n_records = int(c[C_N_RECORDS])
+    rx = c[C_RX]
+    rv = c[C_RV]
+    raff = c[C_RAFF]
+    for k in range(k_start, min(n_steps, k_stop)):
         t = k * dt
         # the state at time t, recorded with this step's command and forces
         x_t = x
@@ -411,6 +483,37 @@ def run_kernel(
         steps_run = k + 1
         if stop_at_rest and not moving:
             break
+    c[C_X] = x
+    c[C_V] = v
+    c[C_X_ODO] = x_odo
+    c[C_A] = a
+    c[C_BRAKE_PREV] = brake_prev
+    c[C_U] = u
+    c[C_MOVING] = 1.0 if moving else 0.0
+    c[C_SLIDING] = 1.0 if sliding else 0.0
+    c[C_STOP_T] = stop_t
+    c[C_MAX_VERR] = max_verr
+    c[C_SUM_VERR2] = sum_verr2
+    c[C_N_MOVING] = n_moving
+    c[C_VERR_CO] = verr_co
+    c[C_MAX_DECEL] = max_decel
+    c[C_MAX_JERK] = max_jerk
+    c[C_MAX_XERR] = max_xerr
+    c[C_E_ELEC] = e_elec
+    c[C_E_FRIC] = e_fric
+    c[C_E_TRAC] = e_trac
+    c[C_V_MAX] = v_max
+    c[C_HAS_MOVED] = 1.0 if has_moved else 0.0
+    c[C_SLIDE_T] = slide_t
+    c[C_NEXT_BALISE] = next_balise
+    c[C_NEXT_UPDATE] = next_update
+    c[C_N_UPDATES] = n_updates
+    c[C_NEXT_RECORD] = next_record
+    c[C_N_RECORDS] = n_records
+    c[C_RX] = rx
+    c[C_RV] = rv
+    c[C_RAFF] = raff
+    c[C_STEPS_RUN] = steps_run
     metrics[M_STOP_ERR] = x - ato[A_STOP_M] if not moving else np.nan
     metrics[M_STOP_T] = stop_t
     metrics[M_MAX_VERR] = max_verr

@@ -56,6 +56,42 @@ D_CONST_N = 0
 N_DIST = 1
 # brake sizes: floats of state and of command history
 B_N_STATE, B_N_BUFFER = range(2)
+# a run's loop-carried scalars (RunState.c): steps run, the train, the held command, the
+# ATO's reference, the counters and the metrics' accumulators (sim/engine.py run_kernel)
+(
+    C_STEPS_RUN,
+    C_X,
+    C_V,
+    C_X_ODO,
+    C_A,
+    C_BRAKE_PREV,
+    C_U,
+    C_MOVING,
+    C_SLIDING,
+    C_STOP_T,
+    C_MAX_VERR,
+    C_SUM_VERR2,
+    C_N_MOVING,
+    C_VERR_CO,
+    C_MAX_DECEL,
+    C_MAX_JERK,
+    C_MAX_XERR,
+    C_E_ELEC,
+    C_E_FRIC,
+    C_E_TRAC,
+    C_V_MAX,
+    C_HAS_MOVED,
+    C_SLIDE_T,
+    C_NEXT_BALISE,
+    C_NEXT_UPDATE,
+    C_N_UPDATES,
+    C_NEXT_RECORD,
+    C_N_RECORDS,
+    C_RX,
+    C_RV,
+    C_RAFF,
+) = range(31)
+N_CARRY = 31
 
 
 class SimIn(NamedTuple):
@@ -148,6 +184,18 @@ class RunInputs(NamedTuple):
     realism: RealismIn
     disturbance: DisturbanceIn
     reference: ReferenceIn
+
+
+class RunState(NamedTuple):
+    """Where a run is between two calls of the compiled loop: ``c`` by ``C_*`` and the
+    run's private copies of the controller's and the brake's parameters and state."""
+
+    c: np.ndarray
+    ctrl_p: np.ndarray
+    ctrl_s: np.ndarray
+    brake_p: np.ndarray
+    brake_s: np.ndarray
+    brake_buf: np.ndarray
 
 
 @njit(cache=True)

@@ -84,6 +84,9 @@ def make_controller(scenario: Scenario, name: str | None = None) -> Controller:
     # each value must have the shape of the parameter's default, before any arithmetic
     a_max = scenario.train.max_service_decel_mps2
     params.setdefault("output_limits", (-a_max, a_max))
+    if "stop_m" in accepted:
+        # a controller that stops by prediction is told where (the reference's stop)
+        params.setdefault("stop_m", float(scenario.reference.stop_m))
     defaults = {k: None if p.default is p.empty else p.default for k, p in accepted.items()}
     defaults.update(params)
     for key, value in overrides.items():
@@ -162,7 +165,16 @@ def run_once(
     metrics = np.zeros(engine.N_METRICS)
     kernel = engine.kernel_for(binding.cacheable)
     with binding:
-        kernel(inp, binding.step, brake_step, record, max(record_every, 1), metrics)
+        kernel(
+            inp,
+            binding.step,
+            brake_step,
+            record,
+            max(record_every, 1),
+            metrics,
+            engine.fresh_state(inp),
+            n,
+        )
     return metrics, record
 
 
@@ -220,11 +232,22 @@ def simulate(scenario: Scenario, controller: Any = None) -> SimResult:
     inp = run_inputs(scenario, binding)
     brake_step = brake_entry_of(scenario.brake).step
     metrics, record = run_once(inp, binding, brake_step, scenario.sim.record_every)
+    return sim_result(scenario, binding.name, scenario.reference.stop_m, metrics, record)
+
+
+def sim_result(
+    scenario: Scenario,
+    controller: str,
+    stop_point_m: float,
+    metrics: np.ndarray,
+    record: np.ndarray,
+) -> SimResult:
+    """One result from the kernel's metrics and recorder arrays."""
     series = {name: record[:, i].copy() for i, (name, _) in enumerate(CHANNELS)}
     meta = {
         "scenario": scenario.name,
-        "controller": binding.name,
-        "stop_point_m": scenario.reference.stop_m,
+        "controller": controller,
+        "stop_point_m": stop_point_m,
         "dt_s": scenario.sim.dt_s,
         "stopped": bool(metrics[engine.M_STOPPED]),
     }

@@ -1,0 +1,147 @@
+"""A run that stops and goes on: the onboard re-plans mid-run (a TSR received, a target
+point set or cleared), so the simulator must pause at that instant, take a new planned
+curve and a new stop point, and carry on from the same state.
+
+:class:`Stepper` holds one run's description and its state (sim/layout.py ``RunState``)
+and advances the same compiled loop (sim/engine.py ``run_kernel``) step range by step
+range. Between two calls nothing of the train, the brake or the controller is lost, so a
+run advanced in pieces is the run advanced at once, to the bit (tests/sim/test_stepper.py).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+
+from railpilot.brakes.registry import brake_entry_of
+from railpilot.control.user import bind
+from railpilot.errors import ConfigError
+from railpilot.sim import engine
+from railpilot.sim.drive_profile import PlannedProfile
+from railpilot.sim.inputs import ato_brake_model, distance_table, run_inputs
+from railpilot.sim.layout import (
+    A_STOP_M,
+    C_HAS_MOVED,
+    C_MOVING,
+    C_N_RECORDS,
+    C_STEPS_RUN,
+    C_V,
+    C_X,
+)
+from railpilot.sim.result import SimResult
+from railpilot.sim.run import resolve_controller, sim_result
+
+if TYPE_CHECKING:
+    from railpilot.scenario.model import Scenario
+
+
+class Stepper:
+    """One run of ``scenario`` advanced piece by piece, recording every step.
+
+    ``controller`` as :func:`railpilot.sim.run.simulate` takes it. The reference may be
+    replaced between pieces (:meth:`replace_reference`); so may the controller's
+    parameters (:attr:`controller_params`, the run's private copy).
+    """
+
+    def __init__(self, scenario: Scenario, controller: Any = None) -> None:
+        self.scenario = scenario
+        self._binding = bind(resolve_controller(scenario, controller))
+        self._inputs = run_inputs(scenario, self._binding)
+        self._brake_step = brake_entry_of(scenario.brake).step
+        self._state = engine.fresh_state(self._inputs)
+        n = self._inputs.sim.n_steps
+        self._record_every = max(scenario.sim.record_every, 1)
+        self._record = np.zeros((-(-n // self._record_every), engine.N_CHANNELS))
+        self._metrics = np.zeros(engine.N_METRICS)
+        self._kernel = engine.kernel_for(self._binding.cacheable)
+
+    @property
+    def step(self) -> int:
+        """Steps run so far."""
+        return int(self._state.c[C_STEPS_RUN])
+
+    @property
+    def time_s(self) -> float:
+        return self.step * self._inputs.sim.dt
+
+    @property
+    def position_m(self) -> float:
+        return float(self._state.c[C_X])
+
+    @property
+    def speed_mps(self) -> float:
+        return float(self._state.c[C_V])
+
+    @property
+    def at_rest(self) -> bool:
+        """True once the train has come to its final stop (it does not move again)."""
+        return self._state.c[C_MOVING] < 0.5
+
+    @property
+    def finished(self) -> bool:
+        return self.at_rest or self.step >= self._inputs.sim.n_steps
+
+    @property
+    def controller_params(self) -> np.ndarray:
+        """The run's copy of the controller's parameters (changes act from the next step)."""
+        return self._state.ctrl_p
+
+    @property
+    def controller_state(self) -> np.ndarray:
+        """The run's copy of the controller's state (changes act from the next step)."""
+        return self._state.ctrl_s
+
+    def restart(self) -> None:
+        """Let a train at rest move again (a target point cleared): it is held until its
+        traction overcomes the resistance, as at the start of a run."""
+        self._state.c[C_MOVING] = 1.0
+        self._state.c[C_HAS_MOVED] = 0.0
+
+    def advance_to(self, time_s: float) -> None:
+        """Run the steps that start before ``time_s`` [s] (or to the end of the run)."""
+        if not math.isfinite(time_s):
+            raise ConfigError("time_s", time_s, "a finite time [s]")
+        k_stop = min(math.ceil(time_s / self._inputs.sim.dt - 1e-9), self._inputs.sim.n_steps)
+        if k_stop <= self.step:
+            return
+        with self._binding:
+            self._kernel(
+                self._inputs,
+                self._binding.step,
+                self._brake_step,
+                self._record,
+                self._record_every,
+                self._metrics,
+                self._state,
+                k_stop,
+            )
+
+    def run_to_end(self) -> None:
+        self.advance_to(self._inputs.sim.n_steps * self._inputs.sim.dt)
+
+    def replace_reference(self, profile: PlannedProfile) -> None:
+        """Track ``profile`` by distance from the next step on, stopping at its end.
+
+        A distance-based run only (``ato.reference = "distance"``): the ATO looks the new
+        curve up at the measured position; the stop point the metrics measure against
+        is the new curve's end.
+        """
+        reference = self._inputs.reference
+        if reference.by_distance.shape[1] == 0:
+            raise ConfigError(
+                "ato.reference", "time", "'distance' to replace the reference mid-run"
+            )
+        delay, lag = ato_brake_model(self.scenario)
+        table = distance_table(profile, self._inputs.sim.dt, delay + lag)
+        self._inputs = self._inputs._replace(reference=reference._replace(by_distance=table))
+        ato = self._inputs.ato.p.copy()
+        ato[A_STOP_M] = profile.stop_m
+        self._inputs = self._inputs._replace(ato=self._inputs.ato._replace(p=ato))
+
+    def result(self) -> SimResult:
+        """The run so far as one result (what :func:`simulate` returns for a whole run)."""
+        rows = self._record[: int(self._state.c[C_N_RECORDS])]
+        stop = float(self._inputs.ato.p[A_STOP_M])
+        return sim_result(self.scenario, self._binding.name, stop, self._metrics, rows)
