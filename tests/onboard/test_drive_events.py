@@ -150,3 +150,16 @@ def test_origin_to_port_with_a_tsr_and_a_target_point(capsys) -> None:  # type: 
     assert ("3-4", "TSR received") in reasons
     assert ("5-6", "target point set") in reasons
     assert ("5-6", "target point cleared") in reasons
+
+
+def test_the_preset_is_the_example_train_without_its_handover() -> None:
+    from dataclasses import replace
+    from pathlib import Path
+
+    from railpilot.scenario.loader import load_scenario
+
+    example = load_scenario(Path(__file__).parents[2] / "examples" / "heavy_haul_run.toml")
+    preset = heavy_haul_loaded()
+    assert preset.train == example.train
+    assert example.brake.handover_kmh == 50.0
+    assert preset.brake == replace(example.brake, handover_kmh=0.0)

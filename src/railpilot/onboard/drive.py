@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -88,7 +89,13 @@ class TrainPreset:
 
 
 def heavy_haul_loaded() -> TrainPreset:
-    """The 10,000 t, 1,600 m train of examples/heavy_haul_run.toml (one HXD1, brake pipe G)."""
+    """The 10,000 t, 1,600 m train of examples/heavy_haul_run.toml (one HXD1, brake pipe G).
+
+    Without that example's 50 km/h handover from regeneration to air: the precise-stop
+    controller leads the air brake itself, and regeneration to its own fade stops the
+    sections closer to their times and returns more energy (docs/precise-stop.md).
+    tests/onboard/test_drive_events.py checks the two agree in everything else.
+    """
     train = Train(
         mass_kg=10_000e3,
         rotating_mass_factor=0.06,
@@ -403,15 +410,15 @@ class _Route:
     targets: tuple[TargetRequest, ...]
     start_time_s: float
 
-    @property
+    @cached_property
     def static(self) -> SpeedProfile:
         return SpeedProfile(*self.line.static_limit(self.preset.category, self.direction))
 
-    @property
+    @cached_property
     def vehicle_line(self) -> Line:
         return train_line(self.line, self.preset.category, self.direction, self.departure_m)
 
-    @property
+    @cached_property
     def table(self) -> ResistanceTable:
         return elevation_table(self.vehicle_line)
 
