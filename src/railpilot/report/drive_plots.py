@@ -59,7 +59,7 @@ def speed_figure(outcome: DriveOutcome) -> Figure:
             if np.isfinite(request.clear_s) or request.set_s > 0
             else ""
         )
-        ax.annotate(held, (signal / 1000.0, 5), rotation=90, fontsize=8, ha="right")
+        ax.annotate(held, (signal / 1000.0, 30), rotation=90, fontsize=8, ha="left", va="bottom")
     for i, stop in enumerate(outcome.targets):
         ax.axvline(
             stop.position_m / 1000.0,
