@@ -289,25 +289,8 @@ def drive(
     ``margin_kmh``: the plan's ceiling is ``max(C - margin, C / 2)`` of the whole-train
     MRSP ``C``.
     """
-    if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
-        raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
-    start = line.station(from_station)
-    end = line.station(to_station)
-    direction = UP if end.centre_m > start.centre_m else DOWN
-    if end.id == start.id:
-        raise ConfigError("--to", to_station, "a station other than --from")
-    departure, arrival = start.stop_m(direction), end.stop_m(direction)
-    route = _Route(
-        line,
-        preset,
-        direction,
-        departure,
-        float(travelled_m(arrival, direction, departure)),
-        kmh_to_mps(margin_kmh),
-        tsrs,
-        targets,
-        start_time_s,
-    )
+    route = _route(line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s)
+    direction, departure = route.direction, route.departure_m
     mrsp = route.mrsp_at(0.0)
     end_s, quickest_sec = route.section_from(mrsp, 0.0, 0.0)
     quickest = fastest(preset.driving, quickest_sec)
@@ -379,6 +362,51 @@ def drive(
         tuple(timeline),
         tuple(targets),
         tuple(replans),
+    )
+
+
+def departure_section(
+    line: RailLine,
+    preset: TrainPreset,
+    from_station: int,
+    to_station: int,
+    margin_kmh: float = DEFAULT_MARGIN_KMH,
+) -> Section:
+    """The planner's section of a station pair as the train departs with no TSR or target
+    point: the whole-train MRSP of the static limits less the margin (the ground asks the
+    planner for its energy-time curves with it, ground/energy.py)."""
+    route = _route(line, preset, from_station, to_station, margin_kmh, (), (), 0.0)
+    return route.section_from(route.mrsp_at(0.0), 0.0, 0.0)[1]
+
+
+def _route(
+    line: RailLine,
+    preset: TrainPreset,
+    from_station: int,
+    to_station: int,
+    margin_kmh: float,
+    tsrs: tuple[TsrRequest, ...],
+    targets: tuple[TargetRequest, ...],
+    start_time_s: float,
+) -> _Route:
+    if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
+        raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
+    start = line.station(from_station)
+    end = line.station(to_station)
+    direction = UP if end.centre_m > start.centre_m else DOWN
+    if end.id == start.id:
+        raise ConfigError("--to", to_station, "a station other than --from")
+    departure, arrival = start.stop_m(direction), end.stop_m(direction)
+    return _Route(
+        line,
+        preset,
+        direction,
+        departure,
+        float(travelled_m(arrival, direction, departure)),
+        kmh_to_mps(margin_kmh),
+        tsrs,
+        targets,
+        start_time_s,
     )
 
 

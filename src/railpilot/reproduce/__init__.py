@@ -18,6 +18,7 @@ REPRODUCTIONS: dict[str, str] = {
     "eddy-torque": "railpilot.reproduce.eddy_torque",
     "link-demo": "railpilot.reproduce.link_demo",
     "precise-stop": "railpilot.reproduce.precise_stop",
+    "retiming": "railpilot.reproduce.retiming",
 }
 
 
