@@ -213,6 +213,8 @@ class Ground:
                 str(GROUND_ID),
                 "--seconds",
                 "120",  # a safety net only; the fixture stops it
+                "--db",
+                str(tmp / "ground.db"),  # not ./ground.db: every run starts afresh
             ],
             stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE,

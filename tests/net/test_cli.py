@@ -127,6 +127,7 @@ def test_serve_answers_admin_commands_and_stops_on_sigterm(
     keys = _key_file(tmp_path, 0o600)  # a key for train 1001 only
     cmd = [sys.executable, "-m", "railpilot.cli", "ground", "serve", "--keys", str(keys)]
     cmd += ["--port", "0", "--admin-port", "0", "--seconds", "30"]
+    cmd += ["--db", str(tmp_path / "ground.db")]  # not ./ground.db: every run starts afresh
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)
     try:
         port = admin_port = None

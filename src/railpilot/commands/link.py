@@ -14,6 +14,7 @@ import contextlib
 import json
 import logging
 import math
+import os
 import re
 import signal
 import sys
@@ -22,12 +23,15 @@ from pathlib import Path
 from typing import Any, TextIO
 
 from railpilot.commands._common import json_line, log, print_json
+from railpilot.errors import ConfigError
 from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.link.errors import LinkConfigError, LinkError
 from railpilot.units import kmh_to_mps, mps_to_kmh
 
 DEFAULT_PORT = 7400
 DEFAULT_ADMIN_PORT = 7401
+#: ``ground serve --db``: in the working directory, like a log file (ground.store.DEFAULT_PATH)
+DEFAULT_DB = "ground.db"
 
 
 # --- argument helpers -------------------------------------------------------------------------
@@ -68,6 +72,26 @@ def _keys(path: Path | None, no_auth: bool) -> Any:
             )
         return None
     return load_key_file(path)
+
+
+def _db_path(text: str) -> str:
+    """Check ``--db`` before anything is written: ':memory:', or a file we may create or
+    write in an existing directory (the WAL and shared-memory files go next to it)."""
+    if text == ":memory:":
+        return text
+    path = Path(text)
+    parent = path.parent
+    if path.is_dir():
+        problem = "a database file path, not a directory"
+    elif not parent.is_dir():
+        problem = f"a file in an existing directory ({parent} is not one)"
+    elif path.exists() and (not path.is_file() or not os.access(path, os.R_OK | os.W_OK)):
+        problem = "a regular file we may read and write"
+    elif not os.access(parent, os.W_OK | os.X_OK):
+        problem = f"a file in a directory we may write ({parent} is not)"
+    else:
+        return text
+    raise ConfigError("--db", text, problem)
 
 
 def _log_level(args: argparse.Namespace) -> None:
@@ -180,6 +204,13 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
         help="frames timestamped more than this before the server started are refused as "
         f"replays (allowance for trains' clocks lagging the ground's) [{REPLAY_WINDOW_S:g}]",
     )
+    p.add_argument(
+        "--db",
+        default=DEFAULT_DB,
+        metavar="PATH",
+        help="SQLite store of TSRs, deliveries and the audit log, kept across restarts "
+        f"(docs/ground-store.md); ':memory:' keeps nothing [{DEFAULT_DB}]",
+    )
     p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
     _add_log_level(p)
     p.set_defaults(func=_ground_serve)
@@ -199,6 +230,7 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--end-km", type=float, required=True, help="end km post [km]")
     p.add_argument("--limit-kmh", type=float, required=True, help="speed limit [km/h]")
     p.add_argument("--valid-s", type=float, required=True, help="validity from now [s]")
+    p.add_argument("--reason", default="", help="why (kept in the ground's audit log)")
     _add_admin(p)
     p.set_defaults(func=_ground_admin, op="tsr_set")
     p = tsr_sub.add_parser(
@@ -354,6 +386,7 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _ground_serve(args: argparse.Namespace) -> int:
+    from railpilot.ground.store import Store, StoreError
     from railpilot.link import GroundConfig
     from railpilot.net.admin import AdminServer
     from railpilot.net.server import GroundServer
@@ -366,12 +399,23 @@ def _ground_serve(args: argparse.Namespace) -> int:
         raise LinkConfigError("--admin-port", args.admin_port, "0..65535, or -1 = none")
     if not (math.isfinite(args.replay_window_s) and 0 <= args.replay_window_s <= 3600):
         raise LinkConfigError("--replay-window-s", args.replay_window_s, "0..3600 s")
+    db = _db_path(args.db)
     _log_level(args)
+    try:
+        store = Store(db)
+    except StoreError as exc:  # not a database, another schema, no WAL ...
+        allowed = exc.allowed if exc.field == "path" else f"a railpilot ground store ({exc})"
+        raise ConfigError("--db", db, allowed) from None
 
     async def main() -> None:
         stop = await _stop_on_signals()
         server = GroundServer(
-            config, keys, host=args.host, port=args.port, replay_window_s=args.replay_window_s
+            config,
+            keys,
+            host=args.host,
+            port=args.port,
+            replay_window_s=args.replay_window_s,
+            store=store,
         )
         await server.start()
         admin = None
@@ -385,7 +429,10 @@ def _ground_serve(args: argparse.Namespace) -> int:
             await admin.stop()
         await server.stop()
 
-    _run_async(main())
+    try:
+        _run_async(main())
+    finally:
+        store.close()
     return 0
 
 
@@ -395,6 +442,8 @@ def _ground_admin(args: argparse.Namespace) -> int:
     request: dict[str, Any] = {"op": args.op}
     if args.train is not None:
         request["trains"] = _train_list(args.train)
+        # who asked, for the ground's audit log: the operator's login on this host
+        request["actor"] = _login()
     if args.op == "tsr_set":
         request.update(
             session=args.session,
@@ -402,6 +451,7 @@ def _ground_admin(args: argparse.Namespace) -> int:
             end_km=args.end_km,
             limit_kmh=args.limit_kmh,
             valid_s=args.valid_s,
+            reason=args.reason,
         )
     elif args.op == "tsr_cancel":
         request.update(session=args.session)
@@ -432,6 +482,16 @@ def _ground_admin(args: argparse.Namespace) -> int:
         log(f"railpilot: error: refused for train(s) {', '.join(refused)}")
         return 2
     return 0
+
+
+def _login() -> str:
+    import getpass
+
+    try:
+        name = getpass.getuser()
+    except (KeyError, OSError):  # no user name for this uid (a bare container)
+        name = f"uid {os.getuid()}" if hasattr(os, "getuid") else "cli"
+    return name[:64] if name.isprintable() and name.strip() else "cli"
 
 
 def _print_status(status: dict[str, Any]) -> None:

@@ -15,6 +15,9 @@ registered at least once)::
     {"op": "target", "trains": [1001], "target_id": 3, "km": 15.2, "reason": "TRAIN_AHEAD"}
     {"op": "dispatch", "trains": [1001], "command": 42, "text": "hold at next station"}
 
+Every delivery request may name who asks (``"actor"``, default ``"admin"``) and a TSR why
+(``"reason"``); both go to the ground store's audit log (docs/ground-store.md).
+
 Responses: ``{"ok": true, "result": {...}}`` or ``{"ok": false, "error": "..."}``. For a
 delivery, ``result.trains`` maps each train id to ``"sending"`` (connected; resent until
 acknowledged), ``"queued until the train registers"`` or ``"error: ..."``. A delivery
@@ -65,6 +68,15 @@ def _number(req: dict[str, Any], name: str, lo: float, hi: float) -> float:
     ):
         raise AdminError(f"{name} = {value!r} is not allowed: expected a number in [{lo}, {hi}]")
     return float(value)
+
+
+def _text(req: dict[str, Any], name: str, default: str, max_len: int) -> str:
+    value = req.get(name, default)
+    if not isinstance(value, str) or len(value) > max_len or not value.isprintable():
+        raise AdminError(
+            f"{name} = {value!r} is not allowed: expected at most {max_len} printable characters"
+        )
+    return value
 
 
 def _int(req: dict[str, Any], name: str, lo: int, hi: int) -> int:
@@ -139,6 +151,9 @@ class AdminServer:
             if op == "status":
                 return {"ok": True, "result": self.ground.status()}
             trains = self._trains(request)
+            actor = _text(request, "actor", "admin", 64)
+            if not actor.strip():
+                raise AdminError(f"actor = {actor!r} is not allowed: expected a name")
             g = self.ground
             if op == "tsr_set":
                 valid_s = _number(request, "valid_s", 1.0, 30 * 86400.0)
@@ -162,10 +177,15 @@ class AdminServer:
                     float(start),
                     float(start) + valid_s,
                 )
-                results = await g.paced(g.set_tsr, trains, tsr)
+                reason = _text(request, "reason", "", 200)
+                results = await g.paced(
+                    lambda ids, item: g.set_tsr(ids, item, actor=actor, reason=reason), trains, tsr
+                )
             elif op == "tsr_cancel":
                 session = _int(request, "session", 1, 0xFFFF_FFFF)
-                results = await g.paced(g.cancel_tsr, trains, session)
+                results = await g.paced(
+                    lambda ids, item: g.cancel_tsr(ids, item, actor=actor), trains, session
+                )
             elif op == "target":
                 reason_name = str(request.get("reason", "OTHER")).upper().replace("-", "_")
                 if reason_name not in TargetReason.__members__:
@@ -178,13 +198,19 @@ class AdminServer:
                     _number(request, "km", 0.0, 10_000.0) * 1000.0,
                     TargetReason[reason_name],
                 )
-                results = await g.paced(g.send_target_point, trains, target)
+                results = await g.paced(
+                    lambda ids, item: g.send_target_point(ids, item, actor=actor), trains, target
+                )
             else:
                 text = request.get("text")
                 if not isinstance(text, str):
                     raise AdminError(f"text = {text!r} is not allowed: expected a string")
                 command = DispatchCommand(_int(request, "command", 1, 0xFFFF_FFFF), text)
-                results = await g.paced(g.send_dispatch_command, trains, command)
+                results = await g.paced(
+                    lambda ids, item: g.send_dispatch_command(ids, item, actor=actor),
+                    trains,
+                    command,
+                )
             return {"ok": True, "result": {"trains": {str(t): r for t, r in results.items()}}}
         except (AdminError, LinkError) as exc:
             return {"ok": False, "error": str(exc)}

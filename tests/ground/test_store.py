@@ -1,0 +1,211 @@
+"""The ground store (SQLite): round trips, WAL, schema version, audit order, bad input."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import pytest
+
+from railpilot.ground.store import SCHEMA_VERSION, Store, StoreError
+from railpilot.link import (
+    DeliveryState,
+    DispatchCommand,
+    RegisterRequest,
+    TargetPoint,
+    TargetReason,
+    TsrSet,
+    TsrState,
+)
+
+T0 = 1_700_000_000.0
+TSR = TsrSet(21, 5_000.0, 6_000.0, 40 / 3.6, T0, T0 + 3600.0)
+
+
+def _filled(store: Store) -> None:
+    store.record_tsr(TSR, actor="dispatcher-7", reason="track work", at_s=T0)
+    store.record_tsr_state(1001, 21, TsrState.ACTIVE, at_s=T0 + 1)
+    store.record_tsr_state(1002, 21, TsrState.PENDING_SET, at_s=T0 + 1)
+    store.record_delivery(1001, TargetPoint(3, 7_500.0, TargetReason.TRAIN_AHEAD), _P, at_s=T0)
+    store.record_delivery(1001, DispatchCommand(42, "hold at Datong"), _P, at_s=T0)
+    store.record_registration(1001, RegisterRequest("K1001", "SS4-0001", 7, 600.0), at_s=T0)
+
+
+_P = DeliveryState.PENDING
+
+
+def test_a_file_store_is_in_wal_mode_with_full_sync_and_the_current_schema(tmp_path: Path) -> None:
+    with Store(tmp_path / "ground.db") as store:
+        assert store.journal_mode == "wal"
+        assert store.synchronous == "FULL"
+        assert store.schema_version == SCHEMA_VERSION
+    with Store(tmp_path / "normal.db", synchronous="NORMAL") as store:
+        assert store.synchronous == "NORMAL"
+
+
+def test_everything_written_is_loaded_back_after_reopening(tmp_path: Path) -> None:
+    path = tmp_path / "ground.db"
+    with Store(path) as store:
+        _filled(store)
+    with Store(path) as store:
+        snapshot = store.load()
+    stored = snapshot.tsrs[21]
+    assert stored.tsr == TSR  # floats round-trip exactly (REAL is a double)
+    assert (stored.actor, stored.reason, stored.set_at_s) == ("dispatcher-7", "track work", T0)
+    assert stored.cancelled_at_s is None
+    first, second = snapshot.trains[1001], snapshot.trains[1002]
+    assert first.tsrs == {21: TsrState.ACTIVE} and second.tsrs == {21: TsrState.PENDING_SET}
+    assert first.target_points == {3: (TargetPoint(3, 7_500.0, TargetReason.TRAIN_AHEAD), _P)}
+    assert first.dispatch_commands == {42: (DispatchCommand(42, "hold at Datong"), _P)}
+    assert first.registration == RegisterRequest("K1001", "SS4-0001", 7, 600.0)
+    assert first.registered_at_s == T0
+    assert second.registration is None and second.registered_at_s is None
+
+
+def test_states_are_updated_in_place() -> None:
+    with Store(":memory:") as store:
+        _filled(store)
+        store.record_tsr_state(1002, 21, TsrState.ACTIVE, at_s=T0 + 2)
+        store.record_tsr_state(1001, 21, TsrState.PENDING_CANCEL, at_s=T0 + 3)
+        store.record_tsr_cancel(21, actor="dispatcher-8", at_s=T0 + 3)
+        store.record_tsr_cancel(21, actor="dispatcher-9", at_s=T0 + 4)  # the first stays
+        store.record_delivery_state(1001, TargetPoint, 3, DeliveryState.ACKNOWLEDGED, at_s=T0)
+        store.record_delivery_state(1001, DispatchCommand, 42, DeliveryState.ACKNOWLEDGED, at_s=T0)
+        snapshot = store.load()
+    assert snapshot.trains[1001].tsrs == {21: TsrState.PENDING_CANCEL}
+    assert snapshot.trains[1002].tsrs == {21: TsrState.ACTIVE}
+    assert (snapshot.tsrs[21].cancelled_at_s, snapshot.tsrs[21].cancelled_by) == (
+        T0 + 3,
+        "dispatcher-8",
+    )
+    first = snapshot.trains[1001]
+    assert first.target_points[3][1] is DeliveryState.ACKNOWLEDGED
+    assert first.dispatch_commands[42][1] is DeliveryState.ACKNOWLEDGED
+
+
+def test_a_new_target_point_under_the_same_id_replaces_the_old() -> None:
+    with Store(":memory:") as store:
+        _filled(store)
+        store.record_delivery_state(1001, TargetPoint, 3, DeliveryState.ACKNOWLEDGED, at_s=T0)
+        moved = TargetPoint(3, 9_000.0, TargetReason.SECTION_FAULT)
+        store.record_delivery(1001, moved, _P, at_s=T0 + 5)
+        assert store.load().trains[1001].target_points == {3: (moved, _P)}
+
+
+def test_the_same_tsr_again_is_a_no_op_but_a_reused_session_is_refused() -> None:
+    with Store(":memory:") as store:
+        store.record_tsr(TSR, actor="dispatcher-7", reason="track work", at_s=T0)
+        store.record_tsr(TSR, actor="someone-else", reason="", at_s=T0 + 9)
+        assert store.load().tsrs[21].actor == "dispatcher-7"
+        other = TsrSet(21, 5_000.0, 6_000.0, 60 / 3.6, T0, T0 + 3600.0)
+        with pytest.raises(StoreError, match=r"tsr.session = 21 is not allowed: expected a sess"):
+            store.record_tsr(other, actor="dispatcher-7", at_s=T0)
+        assert store.load().tsrs[21].tsr == TSR
+
+
+def test_a_dispatch_command_number_names_one_text_for_good() -> None:
+    with Store(":memory:") as store:
+        _filled(store)
+        with pytest.raises(StoreError, match=r"message\.command_number = 42 is not allowed"):
+            store.record_delivery(1001, DispatchCommand(42, "other text"), _P, at_s=T0)
+
+
+def test_the_audit_log_keeps_the_order_of_writing() -> None:
+    with Store(":memory:") as store:
+        first = store.audit("tsr_set", actor="dispatcher-7", at_s=T0 + 5, train_id=1001)
+        store.audit(
+            "tsr_acknowledged",
+            actor="train 1001",
+            at_s=T0 + 1,  # an earlier clock reading: the order is still that of writing
+            train_id=1001,
+            detail={"session": 21},
+        )
+        store.audit("tsr_set", actor="dispatcher-7", at_s=T0 + 6, train_id=1002)
+        log = store.audit_log()
+        assert [e.action for e in log] == ["tsr_set", "tsr_acknowledged", "tsr_set"]
+        assert [e.seq for e in log] == [first, first + 1, first + 2]
+        assert log[1].detail == {"session": 21} and log[1].actor == "train 1001"
+        assert [e.train_id for e in store.audit_log(train_id=1002)] == [1002]
+        assert [e.action for e in store.audit_log(after_seq=first)] == [
+            "tsr_acknowledged",
+            "tsr_set",
+        ]
+
+
+def test_a_transaction_commits_together_or_not_at_all() -> None:
+    with Store(":memory:") as store:
+        store.record_tsr(TSR, actor="dispatcher-7", at_s=T0)
+        with pytest.raises(StoreError), store.transaction():
+            store.record_tsr_state(1001, 21, TsrState.PENDING_SET, at_s=T0)
+            store.audit("tsr_set", actor="dispatcher-7", at_s=T0, train_id=1001)
+            store.record_tsr_state(1001, 99, TsrState.PENDING_SET, at_s=T0)  # no such TSR
+        assert store.load().trains == {} and store.audit_log() == []
+        with store.transaction():
+            store.record_tsr_state(1001, 21, TsrState.PENDING_SET, at_s=T0)
+            with pytest.raises(StoreError), store.transaction():  # a savepoint
+                store.audit("x", actor="a", at_s=T0)
+                store.audit("", actor="a", at_s=T0)
+        assert store.load().trains[1001].tsrs == {21: TsrState.PENDING_SET}
+        assert store.audit_log() == []
+
+
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        (lambda s: s.record_tsr_state(0, 21, TsrState.ACTIVE, at_s=T0), "train_id = 0 is not"),
+        (lambda s: s.record_tsr_state(1, 21, "ACTIVE", at_s=T0), "state = 'ACTIVE' is not"),
+        (lambda s: s.record_tsr_state(1, 22, TsrState.ACTIVE, at_s=T0), "session = 22 is not"),
+        (lambda s: s.record_tsr(TSR, actor="", at_s=T0), "actor = '' is not"),
+        (lambda s: s.record_tsr(TSR, actor="a\nb", at_s=T0), "actor = 'a\\\\nb' is not"),
+        (lambda s: s.record_tsr(TSR, actor="a", at_s=float("nan")), "at_s = nan is not"),
+        (lambda s: s.record_tsr(TSR, actor="a", reason="x" * 201, at_s=T0), "reason = 'xx"),
+        (lambda s: s.record_delivery(1, TSR, _P, at_s=T0), "message = TsrSet"),
+        (
+            lambda s: s.record_delivery_state(1, TargetPoint, 3, _P, at_s=T0),
+            "ident = 3 is not allowed: expected a TargetPoint recorded for train 1 first",
+        ),
+        (lambda s: s.audit("x", actor="a", at_s=T0, detail={"v": float("inf")}), "detail = "),
+        (lambda s: s.audit("x", actor="a", at_s=-1.0), "at_s = -1.0 is not"),
+    ],
+)
+def test_bad_input_is_refused_naming_the_field_and_nothing_is_written(
+    call: object, message: str
+) -> None:
+    with Store(":memory:") as store:
+        store.record_tsr(TSR, actor="dispatcher-7", at_s=T0)
+        before = (store.load(), store.audit_log())
+        with pytest.raises(StoreError, match=message) as raised:
+            call(store)  # type: ignore[operator]
+        assert "is not allowed: expected" in str(raised.value)
+        assert str(raised.value).endswith("; nothing was written")
+        assert (store.load(), store.audit_log()) == before
+
+
+def test_a_bad_path_is_refused(tmp_path: Path) -> None:
+    with pytest.raises(StoreError, match=r"path = .* not a directory"):
+        Store(tmp_path)
+    with pytest.raises(StoreError, match=r"path = .* an existing directory"):
+        Store(tmp_path / "missing" / "ground.db")
+    foreign = tmp_path / "notes.txt"
+    foreign.write_text("not a database, but a text file long enough to have a header\n" * 20)
+    with pytest.raises(StoreError, match=r"path = .*notes\.txt"):
+        Store(foreign)
+    assert foreign.read_text().startswith("not a database")
+    with pytest.raises(StoreError, match="synchronous = 'OFF' is not allowed"):
+        Store(tmp_path / "x.db", synchronous="OFF")
+    assert not (tmp_path / "x.db").exists()
+
+
+def test_another_schema_is_refused(tmp_path: Path) -> None:
+    path = tmp_path / "ground.db"
+    with Store(path):
+        pass
+    with sqlite3.connect(path) as db:
+        db.execute("UPDATE schema_version SET version = ?", (SCHEMA_VERSION + 1,))
+    with pytest.raises(StoreError, match=f"schema_version = {SCHEMA_VERSION + 1} is not allowed"):
+        Store(path)
+    other = tmp_path / "other.db"
+    with sqlite3.connect(other) as db:
+        db.execute("CREATE TABLE t (x)")
+    with pytest.raises(StoreError, match="a railpilot ground store"):
+        Store(other)
