@@ -1,0 +1,18 @@
+"""The dispatcher dashboard: an HTTP + WebSocket adapter over the ground (docs/dashboard.md).
+
+- :mod:`~railpilot.web.source`: what the page needs of the ground (:class:`DashboardSource`);
+- :mod:`~railpilot.web.view`: the snapshot's parts from the ground's own objects;
+- :mod:`~railpilot.web.forms`: the TSR form's schema and validation;
+- :mod:`~railpilot.web.app`: the Starlette app (routes, token, WebSocket pushes);
+- :mod:`~railpilot.web.fake`: a deterministic made-up ground for tests and the demo.
+
+The page itself (static/) is plain SVG and JavaScript, no build step and nothing fetched
+from elsewhere.
+"""
+
+from __future__ import annotations
+
+from .app import DEFAULT_HOST, create_app, server_config
+from .source import TSR_FORM_FIELDS, DashboardSource
+
+__all__ = ["DEFAULT_HOST", "TSR_FORM_FIELDS", "DashboardSource", "create_app", "server_config"]

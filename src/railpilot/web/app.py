@@ -1,0 +1,227 @@
+"""The dispatcher dashboard: a Starlette app over a :class:`DashboardSource` (docs/dashboard.md).
+
+A thin adapter (DESIGN habit 2): it serves the page, asks the source for snapshots, hands
+the TSR form to it and pushes snapshots over a WebSocket. It decides nothing about trains
+or TSRs; the only clock it reads is the event loop's, to pace the pushes.
+
+Routes
+------
+- ``GET /``: the page (static/index.html; its script and style under ``/static``);
+- ``GET /api/snapshot``: the current snapshot (JSON);
+- ``POST /api/tsr``: set a TSR from the form's fields (JSON object);
+- ``POST /api/tsr/{session}/cancel``: cancel a TSR;
+- ``WS /ws``: a snapshot when the source's version changes, and at least every second.
+
+The two ``POST`` routes need ``Authorization: Bearer <token>`` (else 401); a rejected form
+is 422 with ``{"errors": {field: message}}``. Reading needs no token: the page binds to
+127.0.0.1 by default (:data:`DEFAULT_HOST`), answers only to the host names in
+``allowed_hosts`` (against DNS rebinding) and refuses a WebSocket opened by another
+origin (a page of another site cannot read the line through the user's browser).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import hmac
+import json
+from collections.abc import Sequence
+from importlib import resources
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+import uvicorn
+from starlette.applications import Starlette
+from starlette.middleware import Middleware
+from starlette.middleware.trustedhost import TrustedHostMiddleware
+from starlette.requests import Request
+from starlette.responses import FileResponse, Response
+from starlette.routing import Mount, Route, WebSocketRoute
+from starlette.staticfiles import StaticFiles
+from starlette.websockets import WebSocket, WebSocketDisconnect
+
+from railpilot.errors import ConfigError
+
+from .source import DashboardSource
+
+#: Where the dashboard listens unless told otherwise: this host only.
+DEFAULT_HOST = "127.0.0.1"
+#: The host names the app answers to by default (those of DEFAULT_HOST).
+LOCAL_HOSTS = ("127.0.0.1", "localhost")
+#: Shortest dispatcher token [characters] (e.g. ``secrets.token_urlsafe(16)``: 22).
+MIN_TOKEN_CHARS = 16
+#: A snapshot goes out at least this often [s], and the source's version is looked at
+#: this often [s].
+PUSH_INTERVAL_S = 1.0
+POLL_INTERVAL_S = 0.1
+#: Largest request body [bytes] (the form is a few hundred).
+MAX_BODY_BYTES = 16 * 1024
+
+STATIC = Path(str(resources.files("railpilot.web") / "static"))
+
+
+def _dumps(obj: Any) -> str:
+    """JSON as the page reads it (no NaN or infinity: a source bug shows here)."""
+    return json.dumps(obj, allow_nan=False, separators=(",", ":"))
+
+
+def _json(obj: Any, status_code: int = 200, headers: dict[str, str] | None = None) -> Response:
+    return Response(_dumps(obj), status_code, headers, media_type="application/json")
+
+
+def create_app(
+    source: DashboardSource,
+    *,
+    token: str,
+    actor: str = "dispatcher",
+    allowed_hosts: Sequence[str] | None = LOCAL_HOSTS,
+    push_interval_s: float = PUSH_INTERVAL_S,
+) -> Starlette:
+    """The dashboard over ``source``.
+
+    Parameters
+    ----------
+    source
+        The ground (:class:`~railpilot.web.source.DashboardSource`).
+    token
+        The dispatcher token the write routes require (at least
+        :data:`MIN_TOKEN_CHARS` characters, no spaces).
+    actor
+        Who the token stands for in the audit log (``set_by`` of a TSR).
+    allowed_hosts
+        Host names the app answers to (default: 127.0.0.1 and localhost); ``None``: any
+        (only when binding to another interface on purpose).
+    push_interval_s
+        Longest time between two WebSocket pushes [s].
+    """
+    if not isinstance(token, str) or len(token) < MIN_TOKEN_CHARS or token != token.strip():
+        raise ConfigError(
+            "token",
+            "<hidden>",
+            f"a string of at least {MIN_TOKEN_CHARS} characters without surrounding spaces "
+            "(e.g. secrets.token_urlsafe(16))",
+        )
+    if " " in token:
+        raise ConfigError("token", "<hidden>", "a token without spaces")
+    if not isinstance(actor, str) or not actor.strip():
+        raise ConfigError("actor", actor, "a non-empty name")
+    if not (0 < push_interval_s <= 60):
+        raise ConfigError("push_interval_s", push_interval_s, "a time in (0, 60] s")
+    expected = f"Bearer {token}".encode()
+
+    def authorized(request: Request) -> bool:
+        given = request.headers.get("authorization", "").encode("utf-8", "replace")
+        return hmac.compare_digest(given, expected)
+
+    def unauthorized() -> Response:
+        return _json(
+            {"errors": {"token": "a dispatcher token is needed: the one the server printed"}},
+            401,
+            {"WWW-Authenticate": "Bearer"},
+        )
+
+    async def json_body(request: Request) -> tuple[Any, Response | None]:
+        body = await request.body()
+        if len(body) > MAX_BODY_BYTES:
+            error = f"a request body of at most {MAX_BODY_BYTES} bytes"
+            return None, _json({"errors": {"form": error}}, 413)
+        try:
+            return (json.loads(body) if body else {}), None
+        except (UnicodeDecodeError, json.JSONDecodeError):
+            return None, _json({"errors": {"form": "the request body is not JSON"}}, 400)
+
+    def answer(result: dict[str, Any]) -> Response:
+        if "errors" in result:
+            return _json({"errors": result["errors"]}, 422)
+        return _json(result)
+
+    async def page(request: Request) -> Response:
+        return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
+
+    async def snapshot(request: Request) -> Response:
+        return _json(source.snapshot(source.now_s()))
+
+    async def set_tsr(request: Request) -> Response:
+        if not authorized(request):
+            return unauthorized()
+        fields, error = await json_body(request)
+        if error is not None:
+            return error
+        if not isinstance(fields, dict):
+            return _json({"errors": {"form": "expected a JSON object of the form's fields"}}, 422)
+        return answer(source.set_tsr(fields, actor, source.now_s()))
+
+    async def cancel_tsr(request: Request) -> Response:
+        if not authorized(request):
+            return unauthorized()
+        raw = request.path_params["session"]
+        if not raw.isdigit() or not 1 <= int(raw) <= 0xFFFF_FFFF:
+            return _json({"errors": {"session": f"{raw!r} is not a TSR session number"}}, 422)
+        return answer(source.cancel_tsr(int(raw), actor, source.now_s()))
+
+    async def updates(websocket: WebSocket) -> None:
+        origin = websocket.headers.get("origin")
+        if origin is not None and urlsplit(origin).netloc != websocket.headers.get("host"):
+            await websocket.close(code=1008)  # policy violation: another site's page
+            return
+        await websocket.accept()
+        closed = asyncio.Event()
+
+        async def read() -> None:
+            # The page sends nothing; reading is how a close is noticed.
+            try:
+                while (await websocket.receive())["type"] != "websocket.disconnect":
+                    pass
+            finally:
+                closed.set()
+
+        reader = asyncio.create_task(read())
+        loop = asyncio.get_running_loop()
+        sent_version: int | None = None
+        sent_at = -float("inf")
+        try:
+            while not closed.is_set():
+                version = source.version()
+                if version != sent_version or loop.time() - sent_at >= push_interval_s:
+                    await websocket.send_text(_dumps(source.snapshot(source.now_s())))
+                    sent_version, sent_at = version, loop.time()
+                with contextlib.suppress(TimeoutError):
+                    await asyncio.wait_for(closed.wait(), POLL_INTERVAL_S)
+        except (WebSocketDisconnect, RuntimeError, OSError):
+            pass  # the page went away between two pushes
+        finally:
+            reader.cancel()
+            with contextlib.suppress(asyncio.CancelledError, Exception):
+                await reader
+
+    hosts = list(allowed_hosts) if allowed_hosts is not None else ["*"]
+    return Starlette(
+        routes=[
+            Route("/", page),
+            Route("/api/snapshot", snapshot),
+            Route("/api/tsr", set_tsr, methods=["POST"]),
+            Route("/api/tsr/{session}/cancel", cancel_tsr, methods=["POST"]),
+            WebSocketRoute("/ws", updates),
+            Mount("/static", StaticFiles(directory=STATIC), name="static"),
+        ],
+        middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=hosts)],
+    )
+
+
+def server_config(app: Starlette, *, host: str = DEFAULT_HOST, port: int = 8080) -> uvicorn.Config:
+    """The uvicorn configuration the dashboard runs under (``port=0``: any free port).
+
+    Serve it with ``uvicorn.Server(config).serve()`` in the ground's event loop, or in a
+    thread of its own (tests/web/).
+    """
+    return uvicorn.Config(
+        app,
+        host=host,
+        port=port,
+        log_level="warning",
+        access_log=False,
+        lifespan="off",
+        timeout_graceful_shutdown=5,  # open WebSockets get this long [s] to close
+        ws="websockets-sansio",
+    )

@@ -1,0 +1,89 @@
+"""What the dashboard reads and asks of the ground: the :class:`DashboardSource` protocol.
+
+The web app (app.py) is a thin adapter: it asks a source for JSON-ready snapshots, hands
+the dispatcher's TSR form to it and pushes the snapshots over a WebSocket. The source owns
+the ground's state and its clock; the app never interprets a snapshot. Two sources exist
+or are planned:
+
+- :class:`railpilot.web.fake.FakeGround`: a deterministic line full of trains, for the
+  tests and the screenshot demo;
+- the ground server (net/server.py), once wired (docs/dashboard.md, "Wiring the ground
+  server").
+
+Snapshot (``snapshot(now_s)``), in the dispatcher's units (km posts in km, speeds in km/h,
+times in s of the ground clock)::
+
+    {"now_s": float, "version": int,
+     "line": {"name", "start_km", "end_km",
+              "stations": [{"id", "name", "km"}],
+              "signals": [{"id", "km", "direction": "up"|"down", "kind", "block",
+                           "aspect": "red"|"green"}]},
+     "blocks": [{"id", "direction", "start_km", "end_km", "state": "occupied"|"restricted",
+                 "trains": [train id, ...], "reason": str|None}],   # the blocks not free
+     "trains": [{"id", "number", "registered", "length_km", "km", "speed_kmh", "direction",
+                 "valid", "info_age_s", "mrsp_kmh", "deviation_s",
+                 "link": {"connected", "timeouts", "failures",
+                 "rejections": {check: count}}, "target": {...}|None, "alarms": [kind]}],
+     "tsrs": [{"session", "start_km", "end_km", "limit_kmh", "valid_from_s",
+               "valid_until_s", "reason", "set_by", "state",
+               "deliveries": [{"train", "number", "state"}]}],
+     "dispatch": [{"command", "train", "number", "text", "state"}],
+     "graph": {"from_s", "to_s", "trains": [{"id", "number", "direction",
+                                             "plan": [[t_s, km], ...],
+                                             "actual": [[t_s, km], ...]}]},
+     "alarms": [{"kind": "link"|"overspeed", "train", "number", "text"}]}
+
+:mod:`railpilot.web.view` builds each part from the ground's own objects, so every source
+produces the same shape.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, Protocol, runtime_checkable
+
+#: The TSR form's fields, as the page posts them (strings or numbers). They mirror
+#: :class:`railpilot.ground.tsr_manager.LineTsr` in the dispatcher's units: km posts [km],
+#: the limit [km/h] and the validity window in minutes from now.
+TSR_FORM_FIELDS = (
+    "start_km",
+    "end_km",
+    "limit_kmh",
+    "valid_from_min",
+    "valid_until_min",
+    "reason",
+)
+
+
+@runtime_checkable
+class DashboardSource(Protocol):
+    """The ground as the dashboard sees it (module docstring).
+
+    Every method is called from the web server's event loop and must return quickly; a
+    source updated from another thread guards its state itself (FakeGround holds a lock).
+    """
+
+    def now_s(self) -> float:
+        """The ground clock [s] (epoch seconds on a live ground, simulated in the fake)."""
+        ...
+
+    def version(self) -> int:
+        """A counter bumped by every change the page should see; the app pushes a new
+        snapshot when it changes, and at least every second in any case."""
+        ...
+
+    def snapshot(self, now_s: float) -> dict[str, Any]:
+        """The whole picture at ``now_s`` [s], JSON-ready (module docstring)."""
+        ...
+
+    def set_tsr(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
+        """Validate and set a line TSR from the form's ``fields`` (:data:`TSR_FORM_FIELDS`).
+
+        Returns ``{"ok": {tsr view}}`` or ``{"errors": {field: message}}``, each message
+        naming the value and what is allowed, in the form's units.
+        """
+        ...
+
+    def cancel_tsr(self, session: int, actor: str, now_s: float) -> dict[str, Any]:
+        """Cancel TSR ``session``: ``{"ok": {tsr view}}`` or ``{"errors": {"session": ...}}``."""
+        ...

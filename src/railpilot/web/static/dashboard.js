@@ -1,0 +1,505 @@
+// railpilot dispatcher dashboard: plain JavaScript and SVG, no build step, no libraries.
+// The server pushes a snapshot (docs/dashboard.md) over /ws when anything changes and at
+// least every second; this script draws it. It decides nothing: every state shown comes
+// from the ground. Text from the server is always set as text, never as HTML.
+"use strict";
+
+const SVGNS = "http://www.w3.org/2000/svg";
+const TOKEN_KEY = "railpilot.dispatcherToken";
+const FIELDS = ["start_km", "end_km", "limit_kmh", "valid_from_min", "valid_until_min", "reason"];
+const STALE_AFTER_S = 3; // no push for this long: say so
+
+let latest = null; // the last snapshot
+let lastMessageAt = 0; // performance.now() of the last snapshot [ms]
+let armedCancel = null; // the TSR session whose "Cancel" asks for confirmation
+let staticKey = null; // which line the diagram's static layer was drawn for
+
+// ------------------------------------------------------------------ small DOM helpers
+
+function setAttrs(node, attrs) {
+  for (const [key, value] of Object.entries(attrs || {})) {
+    if (value === null || value === undefined || value === false) continue;
+    if (key === "text") node.textContent = String(value);
+    else if (key.startsWith("on")) node.addEventListener(key.slice(2), value);
+    else node.setAttribute(key, value === true ? "" : String(value));
+  }
+  return node;
+}
+
+function kids(children) {
+  return children.flat().filter((c) => c !== null && c !== undefined && c !== false)
+    .map((c) => (typeof c === "object" ? c : document.createTextNode(String(c))));
+}
+
+function h(tag, attrs, ...children) {
+  const node = setAttrs(document.createElement(tag), attrs);
+  node.append(...kids(children));
+  return node;
+}
+
+function s(tag, attrs, ...children) {
+  const node = setAttrs(document.createElementNS(SVGNS, tag), attrs);
+  node.append(...kids(children));
+  return node;
+}
+
+const $ = (id) => document.getElementById(id);
+
+function hhmmss(t) { return new Date(t * 1000).toISOString().slice(11, 19); }
+function hhmm(t) { return new Date(t * 1000).toISOString().slice(11, 16); }
+function fmt(x, digits) { return x === null || x === undefined ? "–" : Number(x).toFixed(digits); }
+
+function minutes(seconds) {
+  if (seconds === null || seconds === undefined) return h("span", { class: "muted" }, "–");
+  const m = Math.round(seconds / 60);
+  if (m === 0) return h("span", { class: "early" }, "on time");
+  return m > 0 ? h("span", { class: "late" }, `+${m} min late`)
+    : h("span", { class: "early" }, `${-m} min early`);
+}
+
+// ------------------------------------------------------------------ token
+
+function token() { return sessionStorage.getItem(TOKEN_KEY) || ""; }
+
+function showToken() {
+  const set = token() !== "";
+  $("token-state").textContent = set ? "✓ token in use (this tab)" : "no token: read only";
+  $("token-state").className = set ? "set" : "muted";
+  $("token").hidden = set;
+  $("token-save").hidden = set;
+  $("token-forget").hidden = !set;
+}
+
+$("token-form").addEventListener("submit", (event) => {
+  event.preventDefault();
+  const value = $("token").value.trim();
+  $("err-token").textContent = value ? "" : "enter the token the server printed";
+  if (value) sessionStorage.setItem(TOKEN_KEY, value);
+  $("token").value = "";
+  showToken();
+});
+
+$("token-forget").addEventListener("click", () => {
+  sessionStorage.removeItem(TOKEN_KEY);
+  showToken();
+});
+
+// ------------------------------------------------------------------ write actions
+
+async function post(url, body) {
+  const response = await fetch(url, {
+    method: "POST",
+    headers: { "Content-Type": "application/json", Authorization: `Bearer ${token()}` },
+    body: JSON.stringify(body),
+  });
+  let data = {};
+  try { data = await response.json(); } catch (_) { data = {}; }
+  if (response.status === 401) {
+    sessionStorage.removeItem(TOKEN_KEY);
+    showToken();
+  }
+  return { status: response.status, data };
+}
+
+function showErrors(errors) {
+  for (const name of [...FIELDS, "form", "token"]) {
+    const message = (errors && errors[name]) || "";
+    $(`err-${name}`).textContent = message;
+    const input = $(`f-${name}`);
+    if (input) input.setAttribute("aria-invalid", message ? "true" : "false");
+  }
+  const known = new Set([...FIELDS, "form", "token"]);
+  const other = Object.entries(errors || {}).filter(([k]) => !known.has(k));
+  if (other.length) $("err-form").textContent = other.map(([k, v]) => `${k}: ${v}`).join("; ");
+}
+
+$("tsr-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  $("tsr-result").textContent = "";
+  if (!token()) {
+    showErrors({ token: "enter the dispatcher token first" });
+    return;
+  }
+  const fields = {};
+  for (const name of FIELDS) fields[name] = $(`f-${name}`).value;
+  $("tsr-submit").disabled = true;
+  try {
+    const { status, data } = await post("/api/tsr", fields);
+    if (status === 200 && data.ok) {
+      showErrors({});
+      const tsr = data.ok;
+      $("tsr-result").textContent = `TSR ${tsr.session} set: km ${fmt(tsr.start_km, 3)}–` +
+        `${fmt(tsr.end_km, 3)} at ${fmt(tsr.limit_kmh, 0)} km/h, sent to ` +
+        `${tsr.deliveries.length} train(s)`;
+      for (const name of ["start_km", "end_km", "limit_kmh", "reason"]) $(`f-${name}`).value = "";
+    } else {
+      showErrors(data.errors || { form: `the server answered ${status}` });
+    }
+  } catch (error) {
+    showErrors({ form: `could not reach the server: ${error}` });
+  } finally {
+    $("tsr-submit").disabled = false;
+  }
+});
+
+async function cancelTsr(session) {
+  if (armedCancel !== session) { // first click: ask again
+    armedCancel = session;
+    render();
+    return;
+  }
+  armedCancel = null;
+  if (!token()) {
+    showErrors({ token: "enter the dispatcher token first" });
+    render();
+    return;
+  }
+  const { status, data } = await post(`/api/tsr/${session}/cancel`, {});
+  if (status === 200 && data.ok) {
+    showErrors({});
+    $("tsr-result").textContent = `TSR ${session} cancelled: cancel sent to ` +
+      `${data.ok.deliveries.length} train(s)`;
+  } else {
+    showErrors(data.errors || { form: `the server answered ${status}` });
+  }
+  render();
+}
+
+// ------------------------------------------------------------------ the line diagram
+
+const LD = { width: 1560, left: 74, right: 14, rowKm: 100, rowH: 124 };
+// y offsets inside a row
+const Y = { names: 12, upLabel: 27, upSignal: 35, up: 45, down: 71, downSignal: 81, downLabel: 98, ruler: 117 };
+
+function lineRows(line) {
+  const rows = [];
+  for (let start = line.start_km, i = 0; start < line.end_km - 1e-9; start += LD.rowKm, i++) {
+    rows.push({ start, end: Math.min(start + LD.rowKm, line.end_km), y: i * LD.rowH });
+  }
+  return rows;
+}
+
+function kmScale() { return (LD.width - LD.left - LD.right) / LD.rowKm; }
+function xAt(row, km) { return LD.left + (km - row.start) * kmScale(); }
+
+function drawLineStatic(line) {
+  const svg = $("line");
+  const rows = lineRows(line);
+  const height = rows.length * LD.rowH;
+  svg.setAttribute("viewBox", `0 0 ${LD.width} ${height}`);
+  const base = s("g", { id: "line-static" });
+  for (const row of rows) {
+    const g = s("g", { transform: `translate(0 ${row.y})` });
+    g.append(
+      s("text", { class: "row-label", x: 4, y: Y.up + 4 }, "UP →"),
+      s("text", { class: "row-label", x: 4, y: Y.down + 4 }, "← DOWN"),
+      s("text", { class: "row-label", x: 4, y: Y.ruler }, `km ${row.start.toFixed(0)}`),
+    );
+    for (const st of line.stations) {
+      if (st.km < row.start - 1 || st.km > row.end + 1) continue;
+      const x = xAt(row, st.km);
+      g.append(s("g", { class: "station" },
+        s("rect", { x: x - 12, y: Y.names + 6, width: 24, height: Y.downLabel - Y.names - 14, rx: 3 }),
+        s("text", { x, y: Y.names }, st.name)));
+    }
+    g.append(
+      s("line", { class: "track", x1: xAt(row, row.start), x2: xAt(row, row.end), y1: Y.up, y2: Y.up }),
+      s("line", { class: "track", x1: xAt(row, row.start), x2: xAt(row, row.end), y1: Y.down, y2: Y.down }),
+    );
+    for (let k = Math.ceil(row.start / 10) * 10; k <= row.end + 1e-9; k += 10) {
+      const x = xAt(row, k);
+      g.append(
+        s("line", { class: "tick", x1: x, x2: x, y1: Y.ruler - 14, y2: Y.ruler - 9 }),
+        s("text", { class: "tick-label", x, y: Y.ruler }, k.toFixed(0)),
+      );
+    }
+    for (const sig of line.signals) {
+      if (sig.km < row.start || sig.km > row.end) continue;
+      const y = sig.direction === "up" ? Y.upSignal : Y.downSignal;
+      g.append(s("circle", {
+        class: "signal green", id: `sig-${sig.id}`, cx: xAt(row, sig.km), cy: y, r: 3.2,
+      }, s("title", {}, `signal ${sig.id} (${sig.kind}, ${sig.direction}) km ${sig.km.toFixed(3)}`)));
+    }
+    base.append(g);
+  }
+  svg.replaceChildren(base, s("g", { id: "line-dynamic" }));
+}
+
+// the part of [a, b] (km) that lies in a row, or null
+function clip(row, a, b) {
+  const lo = Math.max(Math.min(a, b), row.start);
+  const hi = Math.min(Math.max(a, b), row.end);
+  return lo < hi ? [lo, hi] : null;
+}
+
+function trainClass(train) {
+  const cls = ["train", train.direction];
+  if (train.alarms.includes("overspeed") || train.alarms.includes("link")) cls.push("alarm");
+  if (!train.valid) cls.push("stale");
+  return cls.join(" ");
+}
+
+function drawLine(snap) {
+  const line = snap.line;
+  const key = `${line.name}|${line.start_km}|${line.end_km}|${line.signals.length}`;
+  if (key !== staticKey) { drawLineStatic(line); staticKey = key; }
+  for (const sig of line.signals) {
+    const node = document.getElementById(`sig-${sig.id}`);
+    if (node) node.setAttribute("class", `signal ${sig.aspect}`);
+  }
+  const rows = lineRows(line);
+  const layer = s("g", {});
+  for (const block of snap.blocks) {
+    for (const row of rows) {
+      const part = clip(row, block.start_km, block.end_km);
+      if (!part) continue;
+      const y = row.y + (block.direction === "up" ? Y.up : Y.down);
+      layer.append(s("line", {
+        class: `block ${block.state}`, x1: xAt(row, part[0]), x2: xAt(row, part[1]), y1: y, y2: y,
+      }, s("title", {}, `block ${block.id}: ${block.state}${block.reason ? ` (${block.reason})` : ""}`)));
+    }
+  }
+  for (const tsr of snap.tsrs) {
+    if (tsr.state !== "ACTIVE") continue;
+    for (const row of rows) {
+      const part = clip(row, tsr.start_km, tsr.end_km);
+      if (!part) continue;
+      const x1 = xAt(row, part[0]);
+      const x2 = xAt(row, part[1]);
+      layer.append(s("g", { class: "tsr" },
+        s("rect", { x: x1, y: row.y + Y.up - 6, width: Math.max(x2 - x1, 2), height: Y.down - Y.up + 12 }),
+        s("text", { x: (x1 + x2) / 2, y: row.y + (Y.up + Y.down) / 2 + 4 }, `TSR ${tsr.session} · ${fmt(tsr.limit_kmh, 0)}`),
+        s("title", {}, `TSR ${tsr.session}: ${tsr.reason}`)));
+    }
+  }
+  for (const train of snap.trains) {
+    if (!train.registered || train.km === null || train.direction === "unknown") continue;
+    const up = train.direction === "up";
+    if (train.target) {
+      for (const row of rows) {
+        if (train.target.km < row.start || train.target.km > row.end) continue;
+        const x = xAt(row, train.target.km);
+        const y = row.y + (up ? Y.up : Y.down);
+        layer.append(s("g", { class: "target" },
+          s("line", { x1: x, x2: x, y1: y - 9, y2: y + 9 }),
+          s("title", {}, `target point of ${train.number}: signal ${train.target.signal} (${train.target.reason})`)));
+      }
+    }
+    const length = train.length_km || 1.5;
+    const tail = up ? train.km - length : train.km + length;
+    for (const row of rows) {
+      const part = clip(row, tail, train.km);
+      if (!part) continue;
+      const y = row.y + (up ? Y.up : Y.down);
+      const xa = xAt(row, part[0]);
+      const xb = xAt(row, part[1]);
+      const headIn = train.km >= row.start && train.km <= row.end;
+      let d;
+      if (up) {
+        const tip = headIn ? 7 : 0;
+        d = `M${xa} ${y - 5} L${xb - tip} ${y - 5} L${xb} ${y} L${xb - tip} ${y + 5} L${xa} ${y + 5} Z`;
+      } else {
+        const tip = headIn ? 7 : 0;
+        d = `M${xb} ${y - 5} L${xa + tip} ${y - 5} L${xa} ${y} L${xa + tip} ${y + 5} L${xb} ${y + 5} Z`;
+      }
+      const label = `${train.number} · ${fmt(train.speed_kmh, 0)} km/h ${up ? "▶" : "◀"}` +
+        (train.alarms.length ? " ⚠" : "") + (train.valid ? "" : ` ${fmt(train.info_age_s, 0)} s old`);
+      layer.append(s("g", { class: trainClass(train), "data-train": train.id },
+        s("path", { d }),
+        headIn ? s("text", { x: (xa + xb) / 2, y: row.y + (up ? Y.upLabel : Y.downLabel) }, label) : null,
+        s("title", {}, `${train.number} (id ${train.id}) km ${fmt(train.km, 3)}, ` +
+          `${fmt(train.speed_kmh, 1)} km/h, MRSP ${fmt(train.mrsp_kmh, 1)} km/h`)));
+    }
+  }
+  $("line-dynamic").replaceChildren(layer);
+}
+
+// ------------------------------------------------------------------ time-distance graph
+
+const TD = { width: 800, height: 600, left: 96, right: 44, top: 20, bottom: 26 };
+
+function drawGraph(snap) {
+  const svg = $("graph");
+  svg.setAttribute("viewBox", `0 0 ${TD.width} ${TD.height}`);
+  const { from_s: t0, to_s: t1 } = snap.graph;
+  const line = snap.line;
+  const x = (t) => TD.left + (t - t0) / (t1 - t0) * (TD.width - TD.left - TD.right);
+  const y = (km) => TD.top + (km - line.start_km) / (line.end_km - line.start_km) *
+    (TD.height - TD.top - TD.bottom);
+  const g = s("g", {});
+  for (const st of line.stations) {
+    g.append(
+      s("line", { class: "grid", x1: TD.left, x2: TD.width - TD.right, y1: y(st.km), y2: y(st.km) }),
+      s("text", { class: "station-label", x: TD.left - 5, y: y(st.km) + 3 }, st.name),
+    );
+  }
+  const step = 600;
+  for (let t = Math.ceil(t0 / step) * step; t <= t1; t += step) {
+    g.append(
+      s("line", { class: "grid", x1: x(t), x2: x(t), y1: TD.top, y2: TD.height - TD.bottom }),
+      s("text", { class: "time-label", x: x(t), y: TD.height - 8 }, hhmm(t)),
+    );
+  }
+  const byId = Object.fromEntries(snap.trains.map((t) => [t.id, t]));
+  for (const series of snap.graph.trains) {
+    const train = byId[series.id];
+    const alarm = train && train.alarms.length ? " alarm" : "";
+    const cls = `${series.direction}${alarm}`;
+    const pts = (list) => list.map(([t, km]) => `${x(t).toFixed(1)},${y(km).toFixed(1)}`).join(" ");
+    if (series.plan.length > 1) g.append(s("polyline", { class: `plan ${cls}`, points: pts(series.plan) }));
+    if (series.actual.length > 1) g.append(s("polyline", { class: `actual ${cls}`, points: pts(series.actual) }));
+    if (series.actual.length) {
+      const [t, km] = series.actual[series.actual.length - 1];
+      g.append(s("text", { class: `train-label ${cls}`, x: x(t) + 4, y: y(km) + 3 }, series.number));
+    }
+  }
+  const now = snap.now_s;
+  g.append(
+    s("line", { class: "now", x1: x(now), x2: x(now), y1: TD.top, y2: TD.height - TD.bottom }),
+    s("text", { class: "now-label", x: x(now), y: TD.top - 2 }, "now"),
+  );
+  svg.replaceChildren(g);
+}
+
+// ------------------------------------------------------------------ tables
+
+function chip(state, attrs, ...label) {
+  return h("li", { class: `chip state-${state}`, ...attrs }, ...label, h("span", { class: "state" }, state));
+}
+
+function drawTsrs(snap) {
+  const rows = snap.tsrs.slice().reverse().map((tsr) => {
+    const armed = armedCancel === tsr.session;
+    const button = tsr.state === "ACTIVE"
+      ? h("button", {
+        type: "button", class: armed ? "armed" : "", "data-cancel": tsr.session,
+        onclick: () => cancelTsr(tsr.session),
+      }, armed ? "Confirm cancel" : "Cancel…")
+      : null;
+    return h("tr", { "data-session": tsr.session },
+      h("td", { class: "num" }, tsr.session),
+      h("td", { class: "num" }, `${fmt(tsr.start_km, 3)}–${fmt(tsr.end_km, 3)}`),
+      h("td", { class: "num" }, `${fmt(tsr.limit_kmh, 0)} km/h`),
+      h("td", { class: "num" }, `${hhmm(tsr.valid_from_s)}–${hhmm(tsr.valid_until_s)}`),
+      h("td", {}, tsr.reason, h("br"), h("small", {}, tsr.set_by)),
+      h("td", {}, h("span", { class: `chip state-${tsr.state}` }, tsr.state), h("br"), button),
+      h("td", {}, tsr.deliveries.length
+        ? h("ul", { class: "chips" }, tsr.deliveries.map((d) => chip(d.state,
+          { "data-session": tsr.session, "data-train": d.train, title: `train id ${d.train}` },
+          h("b", {}, d.number))))
+        : h("span", { class: "muted" }, "no train concerned yet")));
+  });
+  if (!rows.length) rows.push(h("tr", {}, h("td", { colspan: 7, class: "muted" }, "no TSR set")));
+  $("tsrs").tBodies[0].replaceChildren(...rows);
+}
+
+function drawTrains(snap) {
+  const rows = snap.trains.map((t) => {
+    const rejections = Object.entries(t.link.rejections).map(([check, n]) => `${check} ${n}`).join(" · ");
+    const link = t.link.connected
+      ? h("span", { class: "ok" }, "up")
+      : h("span", { class: "bad" }, t.link.failures ? `failed (${t.link.failures})` : "down");
+    const report = t.info_age_s === null ? "–"
+      : h("span", { class: t.valid ? "" : "bad" }, `${fmt(t.info_age_s, 0)} s ago`);
+    const target = t.target
+      ? `${t.target.signal || "line end"} km ${fmt(t.target.km, 3)} (${t.target.reason})` : "";
+    const classes = [t.alarms.length ? "alarm" : "", t.registered ? "" : "gone"].join(" ").trim();
+    return h("tr", { class: classes, "data-train": t.id },
+      h("td", {}, h("b", {}, t.number), " ", h("small", {}, `id ${t.id}`),
+        t.registered ? null : h("small", {}, " (left the line)")),
+      h("td", { class: `dir-${t.direction}` }, t.direction === "up" ? "UP ▶" : t.direction === "down" ? "◀ DOWN" : "?"),
+      h("td", { class: "num" }, fmt(t.km, 3)),
+      h("td", { class: `num ${t.alarms.includes("overspeed") ? "bad" : ""}` }, `${fmt(t.speed_kmh, 0)} km/h`),
+      h("td", { class: "num" }, `${fmt(t.mrsp_kmh, 0)} km/h`),
+      h("td", { class: "num" }, minutes(t.deviation_s)),
+      h("td", { class: "num" }, report),
+      h("td", {}, link),
+      h("td", { class: "num" }, t.link.timeouts),
+      h("td", {}, rejections || h("span", { class: "muted" }, "none")),
+      h("td", {}, target),
+      h("td", { class: "bad" }, t.alarms.length ? `⚠ ${t.alarms.join(", ")}` : ""));
+  });
+  $("trains").tBodies[0].replaceChildren(...rows);
+}
+
+function drawDispatch(snap) {
+  const targets = snap.trains.filter((t) => t.target).map((t) => h("tr", { "data-train": t.id },
+    h("td", {}, h("b", {}, t.number)),
+    h("td", {}, t.target.signal || "line end"),
+    h("td", { class: "num" }, fmt(t.target.km, 3)),
+    h("td", {}, t.target.reason),
+    h("td", {}, t.target.state ? h("span", { class: `chip state-${t.target.state}` }, t.target.state) : "–")));
+  if (!targets.length) targets.push(h("tr", {}, h("td", { colspan: 5, class: "muted" }, "no train held by a red signal")));
+  $("targets").tBodies[0].replaceChildren(...targets);
+  const commands = snap.dispatch.slice().reverse().map((c) => h("tr", { "data-command": c.command },
+    h("td", { class: "num" }, c.command),
+    h("td", {}, h("b", {}, c.number)),
+    h("td", {}, c.text),
+    h("td", {}, h("span", { class: `chip state-${c.state}` }, c.state))));
+  if (!commands.length) commands.push(h("tr", {}, h("td", { colspan: 4, class: "muted" }, "none sent")));
+  $("dispatch").tBodies[0].replaceChildren(...commands);
+}
+
+function drawAlarms(snap) {
+  const items = snap.alarms.map((a) => h("li", { "data-alarm": a.kind, "data-train": a.train },
+    h("b", {}, `${a.kind === "link" ? "LINK" : "OVERSPEED"} ${a.number}`), a.text));
+  if (!items.length) items.push(h("li", { class: "none" }, "no alarm"));
+  $("alarms").replaceChildren(...items);
+  $("alarm-count").textContent = snap.alarms.length;
+  $("alarm-count").className = snap.alarms.length ? "count" : "count zero";
+  $("alarms-panel").className = snap.alarms.length ? "" : "none";
+}
+
+function drawHeader(snap) {
+  $("line-name").textContent = `· line ${snap.line.name}`;
+  $("clock").textContent = `${hhmmss(snap.now_s)} UTC`;
+  const running = snap.trains.filter((t) => t.registered).length;
+  $("counts").textContent = `${running} trains on the line · ${snap.tsrs.filter((t) => t.state === "ACTIVE").length} TSRs in force`;
+}
+
+function render() {
+  if (!latest) return;
+  drawHeader(latest);
+  drawAlarms(latest);
+  drawLine(latest);
+  drawGraph(latest);
+  drawTsrs(latest);
+  drawTrains(latest);
+  drawDispatch(latest);
+}
+
+// ------------------------------------------------------------------ the feed
+
+function receive(snap) {
+  latest = snap;
+  lastMessageAt = performance.now();
+  document.body.dataset.version = snap.version;
+  render();
+}
+
+function setStatus(live, text) {
+  $("status").className = `status ${live ? "live" : "down"}`;
+  $("status").textContent = text;
+}
+
+function connect() {
+  const scheme = location.protocol === "https:" ? "wss" : "ws";
+  const ws = new WebSocket(`${scheme}://${location.host}/ws`);
+  ws.onopen = () => setStatus(true, "live");
+  ws.onmessage = (event) => receive(JSON.parse(event.data));
+  ws.onclose = () => {
+    setStatus(false, "disconnected: retrying");
+    setTimeout(connect, 1000);
+  };
+}
+
+setInterval(() => {
+  if (!lastMessageAt) return;
+  const age = (performance.now() - lastMessageAt) / 1000;
+  if (age > STALE_AFTER_S) setStatus(false, `no update for ${age.toFixed(0)} s`);
+}, 1000);
+
+showToken();
+fetch("/api/snapshot").then((r) => r.json()).then((snap) => { if (!latest) receive(snap); })
+  .catch(() => setStatus(false, "server not reachable"));
+connect();

@@ -1,0 +1,260 @@
+"""The dashboard's snapshot, part by part, from the ground's own objects (no I/O, no clock).
+
+Each function turns what ``ground/`` and ``line/`` already compute into the JSON-ready
+dicts of :mod:`railpilot.web.source` (km posts in km, speeds in km/h, times in s), so the
+fake source and the live ground server produce the same snapshot. Nothing here decides
+anything the ground does not: the one rule of its own is the signal aspect the page shows
+(:func:`signal_aspects`) and what counts as an alarm (:func:`train_alarms`).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Iterable, Mapping
+from typing import Any
+
+from railpilot.ground.occupancy import Occupancy
+from railpilot.ground.registry import TrainState
+from railpilot.ground.targets import Target
+from railpilot.ground.tsr_manager import LineTsr, LineTsrState
+from railpilot.line.model import RailLine, direction_name
+from railpilot.link.events import AppliedTsr
+from railpilot.link.ground import DeliveryState, TsrState
+from railpilot.link.messages import TargetReason, TravelDirection
+from railpilot.onboard.mrsp import SpeedProfile, most_restrictive_profile
+from railpilot.units import m_to_km_post, mps_to_kmh
+
+#: Alarm kinds: the link to a train failed or its running info is stale; a train reported
+#: a speed above its most restrictive speed profile.
+ALARM_LINK = "link"
+ALARM_OVERSPEED = "overspeed"
+
+
+def km(position_m: float) -> float:
+    """A km post [m] as km, to the metre."""
+    return round(float(m_to_km_post(position_m)), 3)
+
+
+def kmh(speed_mps: float) -> float:
+    """A speed [m/s] as km/h, to 0.1 km/h."""
+    return round(float(mps_to_kmh(speed_mps)), 1)
+
+
+def direction(value: TravelDirection) -> str:
+    """``"up"`` / ``"down"`` (``"unknown"`` for a train that has not said)."""
+    if value in (TravelDirection.UP, TravelDirection.DOWN):
+        return direction_name(value)
+    return "unknown"
+
+
+# ---------------------------------------------------------------------------- the line
+
+
+def signal_aspects(
+    line: RailLine, occupancy: Occupancy, restricted: Mapping[str, TargetReason]
+) -> dict[str, str]:
+    """Signal id -> ``"red"`` when the block section beyond it (the one it protects) is
+    occupied or held by a declaration, else ``"green"``.
+
+    The dashboard's two-aspect picture of the ground's fixed-block rule (ground/targets.py:
+    a signal is red when its block is not free); the line's real signalling may show more.
+    """
+    held = set(occupancy.by_block) | set(restricted)
+    aspects = {signal.id: "green" for signal in line.signals}
+    for block in line.block_sections:
+        if block.entry_signal is not None and block.id in held:
+            aspects[block.entry_signal] = "red"
+    return aspects
+
+
+def line_view(line: RailLine, aspects: Mapping[str, str]) -> dict[str, Any]:
+    """The line: stations and signals (each with the block it protects and its aspect)."""
+    protects = {b.entry_signal: b.id for b in line.block_sections if b.entry_signal is not None}
+    return {
+        "name": line.name,
+        "start_km": km(line.start_m),
+        "end_km": km(line.end_m),
+        "stations": [{"id": s.id, "name": s.name, "km": km(s.centre_m)} for s in line.stations],
+        "signals": [
+            {
+                "id": s.id,
+                "km": km(s.position_m),
+                "direction": direction(s.direction),
+                "kind": s.kind,
+                "block": protects.get(s.id),
+                "aspect": aspects.get(s.id, "green"),
+            }
+            for s in line.signals
+        ],
+    }
+
+
+def blocks_view(
+    line: RailLine, occupancy: Occupancy, restricted: Mapping[str, TargetReason]
+) -> list[dict[str, Any]]:
+    """The block sections that are not free, in line order: occupied (by which trains) or
+    restricted (by a declaration, which wins, as in ground/targets.py)."""
+    out = []
+    for block in sorted(line.block_sections, key=lambda b: (b.start_m, b.direction)):
+        trains = occupancy.occupants(block.id)
+        reason = restricted.get(block.id)
+        if reason is None and not trains:
+            continue
+        out.append(
+            {
+                "id": block.id,
+                "direction": direction(block.direction),
+                "start_km": km(block.start_m),
+                "end_km": km(block.end_m),
+                "state": "restricted" if reason is not None else "occupied",
+                "trains": list(trains),
+                "reason": None if reason is None else reason.name,
+            }
+        )
+    return out
+
+
+# ---------------------------------------------------------------------------- the trains
+
+
+def static_profile(line: RailLine, category: str, travel: TravelDirection) -> SpeedProfile:
+    """The line's static limit for ``category`` going ``travel`` as an MRSP input."""
+    return SpeedProfile(*line.static_limit(category, travel))
+
+
+def mrsp_at(
+    static: SpeedProfile,
+    applied: Iterable[AppliedTsr],
+    travel: TravelDirection,
+    head_m: float,
+    now_s: float,
+) -> float:
+    """The train's most restrictive speed [m/s] at its head ``head_m`` [m] at ``now_s``.
+
+    The onboard's own MRSP (onboard/mrsp.py) over the static limit and the TSRs the train
+    has confirmed (``applied``, each extended by the train's length); target points are
+    left out (the page shows them apart).
+    """
+    profile = most_restrictive_profile(static, applied, (), direction=travel, now_s=now_s)
+    return float(profile.at(head_m)[()])
+
+
+def train_alarms(state: TrainState, mrsp_mps: float | None) -> list[str]:
+    """The alarms of one train: ``link`` when the link is down or failed or its running info
+    is stale (older than the registry's validity); ``overspeed`` when its reported speed is
+    above ``mrsp_mps`` [m/s]."""
+    alarms = []
+    if state.registered and (not state.health.connected or not state.info_valid):
+        alarms.append(ALARM_LINK)
+    info = state.running_info
+    if info is not None and mrsp_mps is not None and info.speed_mps > mrsp_mps:
+        alarms.append(ALARM_OVERSPEED)
+    return alarms
+
+
+def target_view(
+    target: Target | None, target_id: int | None, delivery: DeliveryState | None
+) -> dict[str, Any] | None:
+    """A train's current target point (the red signal it must stop before), or None."""
+    if target is None:
+        return None
+    return {
+        "id": target_id,
+        "km": km(target.position_m),
+        "reason": target.reason.name,
+        "signal": target.signal_id,
+        "block": target.block_id,
+        "state": None if delivery is None else delivery.name,
+    }
+
+
+def train_view(
+    state: TrainState,
+    *,
+    mrsp_mps: float | None,
+    deviation_s: float | None,
+    target: dict[str, Any] | None,
+) -> dict[str, Any]:
+    """One train from the registry's :class:`TrainState` (km, km/h, link health, alarms).
+
+    ``deviation_s`` [s] (+ late) is the registry's unless the source knows better.
+    """
+    info = state.running_info
+    health = state.health
+    return {
+        "id": state.train_id,
+        "number": state.train_number or (info.train_number if info else str(state.train_id)),
+        "registered": state.registered,
+        "length_km": None if state.length_m is None else km(state.length_m),
+        "km": None if info is None else km(info.position_m),
+        "speed_kmh": None if info is None else kmh(info.speed_mps),
+        "direction": "unknown" if info is None else direction(info.direction),
+        "valid": state.info_valid,
+        "info_age_s": None if state.info_age_s is None else round(state.info_age_s, 1),
+        "mrsp_kmh": None if mrsp_mps is None or not math.isfinite(mrsp_mps) else kmh(mrsp_mps),
+        "deviation_s": None if deviation_s is None else round(deviation_s),
+        "link": {
+            "connected": health.connected,
+            "timeouts": health.timeouts,
+            "failures": health.failures,
+            "rejections": dict(health.rejections),
+        },
+        "target": target,
+        "alarms": train_alarms(state, mrsp_mps),
+    }
+
+
+def alarms_view(trains: Iterable[Mapping[str, Any]]) -> list[dict[str, Any]]:
+    """Every alarm of every train (from :func:`train_view`), links first."""
+    out = []
+    for kind in (ALARM_LINK, ALARM_OVERSPEED):
+        for train in trains:
+            if kind not in train["alarms"]:
+                continue
+            if kind == ALARM_LINK:
+                age = train["info_age_s"]
+                text = (
+                    "link failed"
+                    if train["link"]["failures"] and not train["link"]["connected"]
+                    else "link down"
+                    if not train["link"]["connected"]
+                    else "running info stale"
+                )
+                if age is not None:
+                    text += f": last report {age:.0f} s ago at km {train['km']:.3f}"
+            else:
+                text = (
+                    f"at {train['speed_kmh']:.1f} km/h, above its MRSP of "
+                    f"{train['mrsp_kmh']:.1f} km/h at km {train['km']:.3f}"
+                )
+            out.append(
+                {"kind": kind, "train": train["id"], "number": train["number"], "text": text}
+            )
+    return out
+
+
+# ---------------------------------------------------------------------------- TSRs
+
+
+def tsr_view(
+    tsr: LineTsr,
+    state: LineTsrState,
+    deliveries: Mapping[int, TsrState],
+    numbers: Mapping[int, str],
+) -> dict[str, Any]:
+    """A line TSR with its delivery state on each train it went to (by train id)."""
+    return {
+        "session": tsr.session,
+        "start_km": km(tsr.start_m),
+        "end_km": km(tsr.end_m),
+        "limit_kmh": kmh(tsr.limit_mps),
+        "valid_from_s": tsr.valid_from_s,
+        "valid_until_s": tsr.valid_until_s,
+        "reason": tsr.reason,
+        "set_by": tsr.set_by,
+        "state": state.name,
+        "deliveries": [
+            {"train": t, "number": numbers.get(t, str(t)), "state": deliveries[t].name}
+            for t in sorted(deliveries)
+        ],
+    }

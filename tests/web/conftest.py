@@ -1,0 +1,111 @@
+"""Fixtures of the dashboard tests: a made-up ground, the app over it, and Debian's chromium.
+
+The browser tests use Playwright for Python with the system's chromium (Debian package
+``chromium``, installed by .ci/run): no browser is downloaded. pytest-playwright's
+``browser_type_launch_args`` is overridden to point at it.
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+import uvicorn
+
+from railpilot.web.app import create_app, server_config
+from railpilot.web.fake import FakeGround
+
+#: The dispatcher token of every test.
+TOKEN = "test-dispatcher-token-0123456789"
+#: Debian's chromium (apt-get install chromium).
+CHROMIUM = Path("/usr/bin/chromium")
+CHROMIUM_FLAGS = (
+    "--headless=new",
+    "--no-sandbox",
+    "--disable-gpu",
+    "--disable-quic",
+    "--no-first-run",
+    "--disable-background-networking",
+    "--disable-component-update",
+    "--disable-sync",
+)
+#: Longest wait for the server to start [s] (a deadline, not a sleep).
+START_DEADLINE_S = 20.0
+
+
+@pytest.fixture(scope="session")
+def browser_type_launch_args(browser_type_launch_args: dict[str, Any]) -> dict[str, Any]:
+    """pytest-playwright's launch arguments, with Debian's chromium and its flags."""
+    return {
+        **browser_type_launch_args,
+        "executable_path": str(CHROMIUM),
+        "args": list(CHROMIUM_FLAGS),
+    }
+
+
+@pytest.fixture(scope="session")
+def browser_context_args(browser_context_args: dict[str, Any]) -> dict[str, Any]:
+    """A dispatcher's wide screen."""
+    return {**browser_context_args, "viewport": {"width": 1600, "height": 1000}}
+
+
+@pytest.fixture
+def ground() -> FakeGround:
+    """The heavy-haul line with 24 trains, at the fake's start."""
+    return FakeGround(24, seed=0)
+
+
+class _Server(uvicorn.Server):
+    """uvicorn's server that says when it has started (or given up)."""
+
+    def __init__(self, config: uvicorn.Config) -> None:
+        super().__init__(config)
+        self.ready = threading.Event()
+
+    async def startup(self, sockets: Any = None) -> None:
+        try:
+            await super().startup(sockets)
+        finally:
+            self.ready.set()
+
+
+@dataclass
+class Served:
+    url: str
+    ground: FakeGround
+
+
+@pytest.fixture
+def served(ground: FakeGround) -> Iterator[Served]:
+    """The dashboard over ``ground`` on 127.0.0.1, an ephemeral port, in a thread."""
+    server = _Server(server_config(create_app(ground, token=TOKEN), port=0))
+
+    def run() -> None:
+        try:
+            server.run()
+        finally:
+            server.ready.set()  # a server that failed to start must not be waited for
+
+    thread = threading.Thread(target=run, name="dashboard", daemon=True)
+    thread.start()
+    assert server.ready.wait(START_DEADLINE_S), "the dashboard did not start in time"
+    assert server.started, "the dashboard failed to start (see the log above)"
+    host, port = server.servers[0].sockets[0].getsockname()[:2]
+    assert host == "127.0.0.1"
+    try:
+        yield Served(f"http://127.0.0.1:{port}/", ground)
+    finally:
+        server.should_exit = True
+        thread.join(START_DEADLINE_S)
+        assert not thread.is_alive(), "the dashboard did not stop"
+
+
+@pytest.fixture(scope="session")
+def base_url() -> None:
+    """No base URL: each test opens the URL it served. (This also stands in for
+    pytest-playwright's own fallback fixture, which pytest 9 warns is deprecated.)"""
+    return None

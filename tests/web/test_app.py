@@ -1,0 +1,219 @@
+"""The dashboard's HTTP and WebSocket routes over the fake ground (Starlette's TestClient)."""
+
+from __future__ import annotations
+
+import json
+import re
+from collections.abc import Iterator
+from typing import Any
+
+import pytest
+from starlette.testclient import TestClient
+from starlette.websockets import WebSocketDisconnect
+
+from railpilot.errors import ConfigError
+from railpilot.link.ground import TsrState
+from railpilot.web.app import STATIC, create_app
+from railpilot.web.fake import FakeGround
+
+from .conftest import TOKEN
+
+AUTH = {"Authorization": f"Bearer {TOKEN}"}
+GOOD = {
+    "start_km": "300",
+    "end_km": "330",
+    "limit_kmh": "40",
+    "valid_from_min": "0",
+    "valid_until_min": "90",
+    "reason": "sun kink check",
+}
+
+
+@pytest.fixture
+def client(ground: FakeGround) -> Iterator[TestClient]:
+    app = create_app(ground, token=TOKEN, allowed_hosts=["testserver"])
+    with TestClient(app) as c:
+        yield c
+
+
+def _errors(response: Any) -> dict[str, str]:
+    assert response.status_code == 422, response.text
+    errors = response.json()["errors"]
+    assert isinstance(errors, dict)
+    return errors
+
+
+# --- the page
+
+
+def test_page_and_its_files_are_served_locally(client: TestClient) -> None:
+    page = client.get("/")
+    assert page.status_code == 200
+    assert "text/html" in page.headers["content-type"]
+    for name in ("dashboard.js", "dashboard.css"):
+        assert f"/static/{name}" in page.text
+        assert client.get(f"/static/{name}").status_code == 200
+
+
+def test_the_page_loads_nothing_from_elsewhere() -> None:
+    # No CDN, no fonts, no build step: every URL in the page's files is local.
+    for path in STATIC.iterdir():
+        text = path.read_text()
+        assert not re.search(r"(src|href)\s*=\s*[\"']?(https?:)?//", text), path.name
+        assert "import " not in text or path.suffix != ".js", path.name
+
+
+# --- the snapshot
+
+
+def test_snapshot_has_every_part_in_the_dispatchers_units(client: TestClient) -> None:
+    response = client.get("/api/snapshot")
+    assert response.status_code == 200
+    snap = response.json()
+    assert set(snap) == {
+        "now_s", "version", "line", "blocks", "trains", "tsrs", "dispatch", "graph", "alarms",
+    }  # fmt: skip
+    line = snap["line"]
+    assert (line["name"], line["start_km"], line["end_km"]) == ("heavy-haul", 0.0, 590.0)
+    assert len(line["stations"]) == 20
+    assert {s["aspect"] for s in line["signals"]} == {"red", "green"}
+    assert len(snap["trains"]) == 24
+    train = snap["trains"][0]
+    assert {"id", "number", "km", "speed_kmh", "direction", "valid", "mrsp_kmh", "link"} <= set(
+        train
+    )
+    assert set(train["link"]) == {"connected", "timeouts", "failures", "rejections"}
+    assert {t["direction"] for t in snap["trains"]} == {"up", "down"}
+    assert {a["kind"] for a in snap["alarms"]} == {"link", "overspeed"}
+    assert [t["session"] for t in snap["tsrs"]] == [1]
+    assert len(snap["graph"]["trains"]) == 24
+    json.dumps(snap, allow_nan=False)  # strict JSON: the page's JSON.parse reads it
+
+
+def test_a_red_signal_protects_a_block_that_is_not_free(client: TestClient) -> None:
+    snap = client.get("/api/snapshot").json()
+    held = {b["id"] for b in snap["blocks"]}
+    for signal in snap["line"]["signals"]:
+        assert (signal["aspect"] == "red") == (signal["block"] in held), signal
+
+
+# --- writing needs the token
+
+
+@pytest.mark.parametrize(
+    "headers",
+    [{}, {"Authorization": "Bearer wrong-token-wrong-token"}, {"Authorization": TOKEN}],
+    ids=["none", "wrong", "not bearer"],
+)
+def test_writing_without_the_token_is_401(client: TestClient, headers: dict[str, str]) -> None:
+    for url in ("/api/tsr", "/api/tsr/1/cancel"):
+        response = client.post(url, json=GOOD, headers=headers)
+        assert response.status_code == 401
+        assert response.headers["www-authenticate"] == "Bearer"
+        assert "token" in response.json()["errors"]
+    assert [t["session"] for t in client.get("/api/snapshot").json()["tsrs"]] == [1]
+
+
+def test_a_short_token_is_refused() -> None:
+    with pytest.raises(ConfigError, match="token"):
+        create_app(FakeGround(2), token="short")
+
+
+def test_another_host_name_is_refused(ground: FakeGround) -> None:
+    # A page that rebinds its own name to 127.0.0.1 still sends its own Host: refused.
+    with TestClient(create_app(ground, token=TOKEN), base_url="http://evil.example") as c:
+        assert c.get("/api/snapshot").status_code == 400
+
+
+# --- the form
+
+
+def test_bad_values_are_422_with_a_message_per_field(client: TestClient) -> None:
+    fields = {**GOOD, "start_km": "abc", "end_km": "700", "reason": " ", "valid_until_min": ""}
+    errors = _errors(client.post("/api/tsr", json=fields, headers=AUTH))
+    assert set(errors) == {"start_km", "end_km", "reason", "valid_until_min"}
+    assert "'abc'" in errors["start_km"] and "number" in errors["start_km"]
+    assert "'700'" in errors["end_km"] and "0 to 590" in errors["end_km"]
+    assert errors["valid_until_min"].startswith("required")
+    assert errors["reason"].startswith("required")
+
+
+@pytest.mark.parametrize(
+    ("change", "field", "says"),
+    [
+        ({"end_km": "290"}, "end_km", "above start_km = 300"),
+        ({"limit_kmh": "0"}, "limit_kmh", "at most 360 km/h"),
+        ({"valid_from_min": "30", "valid_until_min": "20"}, "valid_until_min", "valid_from_min"),
+        ({"valid_from_min": "-5"}, "valid_from_min", "0 to 43200"),
+        ({"colour": "red"}, "colour", "not a field"),
+    ],
+)
+def test_the_rules_of_a_line_tsr_name_the_form_field(
+    client: TestClient, change: dict[str, str], field: str, says: str
+) -> None:
+    errors = _errors(client.post("/api/tsr", json={**GOOD, **change}, headers=AUTH))
+    assert list(errors) == [field]
+    assert says in errors[field]
+
+
+def test_a_body_that_is_not_a_json_object_is_refused(client: TestClient) -> None:
+    assert client.post("/api/tsr", content=b"{", headers=AUTH).status_code == 400
+    assert "form" in _errors(client.post("/api/tsr", json=[1, 2], headers=AUTH))
+
+
+def test_set_then_cancel(client: TestClient, ground: FakeGround) -> None:
+    response = client.post("/api/tsr", json=GOOD, headers=AUTH)
+    assert response.status_code == 200, response.text
+    tsr = response.json()["ok"]
+    assert (tsr["session"], tsr["start_km"], tsr["end_km"], tsr["limit_kmh"]) == (2, 300, 330, 40)
+    assert tsr["set_by"] == "dispatcher"
+    assert tsr["valid_until_s"] - tsr["valid_from_s"] == 90 * 60
+    trains = [d["train"] for d in tsr["deliveries"]]
+    assert len(trains) >= 3
+    assert {d["state"] for d in tsr["deliveries"]} == {"PENDING_SET"}
+
+    ground.advance(10.0)  # every connected train acknowledges within 5 s
+    after = next(t for t in client.get("/api/snapshot").json()["tsrs"] if t["session"] == 2)
+    states = {d["train"]: d["state"] for d in after["deliveries"]}
+    failed = 1016  # the train whose link failed: its delivery waits
+    assert states == {t: "PENDING_SET" if t == failed else "ACTIVE" for t in trains}
+
+    cancelled = client.post("/api/tsr/2/cancel", headers=AUTH)
+    assert cancelled.status_code == 200, cancelled.text
+    assert cancelled.json()["ok"]["state"] == "CANCELLED"
+    ground.advance(10.0)
+    assert {ground.delivery_state(2, t) for t in trains if t != failed} == {TsrState.CANCELLED}
+    assert ground.delivery_state(2, failed) is TsrState.PENDING_CANCEL
+
+
+def test_cancelling_an_unknown_session_is_422(client: TestClient) -> None:
+    assert "session" in _errors(client.post("/api/tsr/9/cancel", headers=AUTH))
+    assert "session" in _errors(client.post("/api/tsr/x/cancel", headers=AUTH))
+
+
+# --- the WebSocket
+
+
+def test_websocket_pushes_a_snapshot_and_again_when_it_changes(
+    client: TestClient, ground: FakeGround
+) -> None:
+    with client.websocket_connect("/ws") as ws:
+        first = ws.receive_json()
+        assert first["version"] == ground.version()
+        assert len(first["trains"]) == 24
+        ground.advance(1.0)
+        # The next push may be a periodic one sent before the change was seen; the change
+        # comes within a few pushes (one at least every second), counted, not timed.
+        versions = []
+        while ground.version() not in versions and len(versions) < 3:
+            versions.append(ws.receive_json()["version"])
+        assert ground.version() in versions
+
+
+def test_websocket_from_another_origin_is_refused(client: TestClient) -> None:
+    with (
+        pytest.raises(WebSocketDisconnect) as refused,
+        client.websocket_connect("/ws", headers={"origin": "http://evil.example"}),
+    ):
+        pass
+    assert refused.value.code == 1008

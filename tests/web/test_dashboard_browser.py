@@ -1,0 +1,139 @@
+"""The dashboard end to end in headless chromium (Playwright, Debian's chromium).
+
+The server runs in a thread (conftest.served); the page gets its snapshots over the
+WebSocket. Time on the made-up line moves only when the test advances it, and every wait
+is Playwright's ``expect`` polling up to a deadline: no sleeps, no timed assertions.
+"""
+
+from __future__ import annotations
+
+import struct
+from pathlib import Path
+
+import pytest
+from playwright.sync_api import Locator, Page, expect
+
+from railpilot.link.ground import TsrState
+
+from .conftest import CHROMIUM, TOKEN, Served
+
+pytestmark = pytest.mark.skipif(
+    not CHROMIUM.exists(),
+    reason=f"Debian's chromium is not installed at {CHROMIUM} (apt-get install chromium; "
+    ".ci/run does it): the browser tests need it",
+)
+
+#: Longest wait for the page to show what the ground holds [ms].
+SHOWN_MS = 10_000
+#: The train whose link failed in the fake (conftest.ground): nothing reaches it.
+NO_LINK = 1016
+
+
+def _open(page: Page, served: Served) -> None:
+    page.goto(served.url)
+    expect(page.locator("#status")).to_have_text("live", timeout=SHOWN_MS)
+    expect(page.locator("#trains tbody tr[data-train]")).to_have_count(24, timeout=SHOWN_MS)
+
+
+def _enter_token(page: Page) -> None:
+    page.fill("#token", TOKEN)
+    page.click("#token-save")
+    expect(page.locator("#token-state")).to_contain_text("token in use")
+
+
+def _fill_tsr(page: Page, **fields: str) -> None:
+    for name, value in fields.items():
+        page.fill(f"#f-{name}", value)
+    page.click("#tsr-submit")
+
+
+def _delivery(page: Page, session: int, train: int) -> Locator:
+    return page.locator(f'#tsrs [data-session="{session}"][data-train="{train}"] .state')
+
+
+def test_dispatcher_sets_a_tsr_and_watches_each_acknowledgement(
+    served: Served, page: Page, tmp_path: Path
+) -> None:
+    ground = served.ground
+    _open(page, served)
+    _enter_token(page)
+    _fill_tsr(
+        page,
+        start_km="300",
+        end_km="330",
+        limit_kmh="40",
+        valid_from_min="0",
+        valid_until_min="90",
+        reason="sun kink check",
+    )
+    expect(page.locator("#tsr-result")).to_contain_text("TSR 2 set", timeout=SHOWN_MS)
+    concerned = [t for t in ground.train_ids() if ground.delivery_state(2, t) is not None]
+    assert len(concerned) >= 4 and NO_LINK in concerned
+    for train in concerned:  # sent, not yet acknowledged: time has not moved
+        expect(_delivery(page, 2, train)).to_have_text("PENDING_SET", timeout=SHOWN_MS)
+
+    waiting = set(concerned) - {NO_LINK}
+    for _ in range(10):  # the acknowledgements come back 1 to 5 s after the delivery
+        if not waiting:
+            break
+        ground.advance(1.0)
+        acknowledged = {t for t in waiting if ground.delivery_state(2, t) is TsrState.ACTIVE}
+        for train in sorted(acknowledged):
+            expect(_delivery(page, 2, train)).to_have_text("ACTIVE", timeout=SHOWN_MS)
+        waiting -= acknowledged
+    assert not waiting, f"trains that never acknowledged: {sorted(waiting)}"
+    expect(_delivery(page, 2, NO_LINK)).to_have_text("PENDING_SET")
+    expect(page.locator("#line .tsr text", has_text="TSR 2 · 40")).not_to_have_count(0)
+    page.screenshot(path=tmp_path / "acknowledged.png", full_page=True)
+
+
+def test_a_bad_value_is_shown_next_to_its_field(served: Served, page: Page) -> None:
+    _open(page, served)
+    _fill_tsr(page, start_km="300", end_km="330", limit_kmh="40", reason="x")
+    expect(page.locator("#err-token")).to_contain_text("token first")  # nothing sent yet
+
+    _enter_token(page)
+    _fill_tsr(page, start_km="300", end_km="290", limit_kmh="fast", reason="check")
+    expect(page.locator("#err-limit_kmh")).to_contain_text("'fast' is not allowed")
+    expect(page.locator("#f-limit_kmh")).to_have_attribute("aria-invalid", "true")
+    expect(page.locator("#err-start_km")).to_have_text("")
+
+    _fill_tsr(page, limit_kmh="40")  # now the km range is what is wrong
+    expect(page.locator("#err-end_km")).to_contain_text("above start_km = 300")
+    expect(page.locator("#err-limit_kmh")).to_have_text("")
+    assert [t["session"] for t in served.ground.snapshot(served.ground.now_s())["tsrs"]] == [1]
+
+
+def test_a_dispatcher_cancels_a_tsr_after_confirming(served: Served, page: Page) -> None:
+    _open(page, served)
+    _enter_token(page)
+    cancel = page.locator('#tsrs button[data-cancel="1"]')
+    cancel.click()
+    expect(cancel).to_have_text("Confirm cancel")
+    cancel.click()
+    expect(page.locator("#tsr-result")).to_contain_text("TSR 1 cancelled", timeout=SHOWN_MS)
+    served.ground.advance(6.0)
+    expect(page.locator('#tsrs tr[data-session="1"] td').nth(5)).to_contain_text("CANCELLED")
+    expect(_delivery(page, 1, 1001)).to_have_text("CANCELLED", timeout=SHOWN_MS)
+
+
+def _png_size(path: Path) -> tuple[int, int]:
+    header = path.read_bytes()[:24]
+    assert header[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = struct.unpack(">II", header[16:24])
+    return width, height
+
+
+def test_screenshot_of_the_line_with_at_least_20_trains(
+    served: Served, page: Page, tmp_path: Path
+) -> None:
+    _open(page, served)
+    served.ground.advance(1.0)
+    expect(page.locator("#line .train text")).to_have_count(24, timeout=SHOWN_MS)
+    expect(page.locator("#alarms li[data-alarm]")).to_have_count(2)
+    expect(page.locator("#line circle.signal.red")).not_to_have_count(0)
+    path = tmp_path / "dashboard.png"
+    page.screenshot(path=path, full_page=True)
+    width, height = _png_size(path)
+    assert width >= 1600 and height >= 1500
+    assert path.stat().st_size > 100_000  # a drawn page, not a blank one

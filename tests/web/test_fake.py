@@ -1,0 +1,74 @@
+"""The made-up ground: deterministic, the ground's own rules, deliveries that progress."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from railpilot.errors import ConfigError
+from railpilot.link.ground import TsrState
+from railpilot.web.fake import FakeGround
+from railpilot.web.source import DashboardSource
+
+FIELDS = {
+    "start_km": "300",
+    "end_km": "330",
+    "limit_kmh": "40",
+    "valid_from_min": "0",
+    "valid_until_min": "90",
+    "reason": "sun kink check",
+}
+
+
+def test_it_is_a_dashboard_source(ground: FakeGround) -> None:
+    assert isinstance(ground, DashboardSource)
+
+
+def test_the_same_seed_gives_the_same_line() -> None:
+    a, b = FakeGround(10, seed=4), FakeGround(10, seed=4)
+    a.advance(30.0)
+    b.advance(30.0)
+    assert json.dumps(a.snapshot(a.now_s())) == json.dumps(b.snapshot(b.now_s()))
+
+
+def test_time_moves_only_when_advanced(ground: FakeGround) -> None:
+    start, version = ground.now_s(), ground.version()
+    assert ground.snapshot(start)["now_s"] == start
+    ground.advance(2.5)
+    assert (ground.now_s(), ground.version()) == (start + 2.5, version + 1)
+    with pytest.raises(ConfigError, match="dt_s"):
+        ground.advance(-1.0)
+
+
+def test_the_demo_line_has_its_incidents(ground: FakeGround) -> None:
+    snap = ground.snapshot(ground.now_s())
+    alarms = {(a["kind"], a["train"]) for a in snap["alarms"]}
+    assert alarms == {("overspeed", 1003), ("link", 1016)}
+    held = [t for t in snap["trains"] if t["target"]]
+    assert [(t["id"], t["target"]["reason"], t["speed_kmh"]) for t in held] == [
+        (1007, "SECTION_FAULT", 0.0)
+    ]
+    assert [b["state"] for b in snap["blocks"]].count("restricted") == 1
+    assert snap["dispatch"][0]["train"] == 1007
+
+
+def test_a_tsr_goes_pending_then_active_train_by_train(ground: FakeGround) -> None:
+    result = ground.set_tsr(FIELDS, "d1", ground.now_s())
+    session = result["ok"]["session"]
+    trains = [d["train"] for d in result["ok"]["deliveries"]]
+    assert {ground.delivery_state(session, t) for t in trains} == {TsrState.PENDING_SET}
+    seen: list[set[int]] = []
+    for _ in range(6):
+        ground.advance(1.0)
+        seen.append({t for t in trains if ground.delivery_state(session, t) is TsrState.ACTIVE})
+    assert seen[0] != seen[-1]  # one after another, as the acknowledgements come back
+    assert seen[-1] == set(trains) - {1016}  # the train without a link never answers
+
+
+def test_an_invalid_form_changes_nothing(ground: FakeGround) -> None:
+    version = ground.version()
+    result = ground.set_tsr({**FIELDS, "limit_kmh": "-3"}, "d1", ground.now_s())
+    assert list(result) == ["errors"] and "limit_kmh" in result["errors"]
+    assert [t["session"] for t in ground.snapshot(ground.now_s())["tsrs"]] == [1]
+    assert ground.version() == version
