@@ -16,6 +16,7 @@ import logging
 import math
 import os
 import re
+import secrets
 import signal
 import sys
 from collections.abc import Iterable
@@ -32,6 +33,11 @@ DEFAULT_PORT = 7400
 DEFAULT_ADMIN_PORT = 7401
 #: ``ground serve --db``: in the working directory, like a log file (ground.store.DEFAULT_PATH)
 DEFAULT_DB = "ground.db"
+#: ``ground serve --http-host``: the dashboard answers only to these host names (web.app).
+DEFAULT_HTTP_HOST = "127.0.0.1"
+HTTP_HOSTS = ("127.0.0.1", "localhost")
+#: ``ground serve --line``: the line the dashboard draws.
+DEFAULT_LINE = "heavy-haul"
 
 
 # --- argument helpers -------------------------------------------------------------------------
@@ -210,6 +216,29 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
         metavar="PATH",
         help="SQLite store of TSRs, deliveries and the audit log, kept across restarts "
         f"(docs/ground-store.md); ':memory:' keeps nothing [{DEFAULT_DB}]",
+    )
+    p.add_argument(
+        "--http-port",
+        type=int,
+        metavar="PORT",
+        help="serve the dispatcher dashboard on this port, 0 = a free one (docs/dashboard.md) "
+        "[no dashboard]",
+    )
+    p.add_argument(
+        "--http-host",
+        default=DEFAULT_HTTP_HOST,
+        help=f"dashboard address: loopback only ({', '.join(HTTP_HOSTS)}) [{DEFAULT_HTTP_HOST}]",
+    )
+    p.add_argument(
+        "--dispatcher-token",
+        metavar="TOKEN",
+        help="token the dashboard asks for to set or cancel TSRs, at least 16 characters "
+        "[a random one, printed at start]",
+    )
+    p.add_argument(
+        "--line",
+        default=DEFAULT_LINE,
+        help=f"the line the dashboard shows: a shipped name or a line TOML file [{DEFAULT_LINE}]",
     )
     p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
     _add_log_level(p)
@@ -399,6 +428,7 @@ def _ground_serve(args: argparse.Namespace) -> int:
         raise LinkConfigError("--admin-port", args.admin_port, "0..65535, or -1 = none")
     if not (math.isfinite(args.replay_window_s) and 0 <= args.replay_window_s <= 3600):
         raise LinkConfigError("--replay-window-s", args.replay_window_s, "0..3600 s")
+    dashboard = _dashboard_options(args)
     db = _db_path(args.db)
     _log_level(args)
     try:
@@ -417,23 +447,97 @@ def _ground_serve(args: argparse.Namespace) -> int:
             replay_window_s=args.replay_window_s,
             store=store,
         )
-        await server.start()
-        admin = None
-        if args.admin_port != -1:
-            admin = AdminServer(server, port=args.admin_port)
-            await admin.start()
-        if args.seconds is not None:
-            asyncio.get_running_loop().call_later(args.seconds, stop.set)
-        await stop.wait()
-        if admin is not None:
-            await admin.stop()
-        await server.stop()
+        http = None
+        if dashboard is not None:
+            # Before the link listens: a busy port stops everything before trains connect.
+            http = await _start_dashboard(server, args, *dashboard)
+        try:
+            await server.start()
+            admin = None
+            if args.admin_port != -1:
+                admin = AdminServer(server, port=args.admin_port)
+                await admin.start()
+            if args.seconds is not None:
+                asyncio.get_running_loop().call_later(args.seconds, stop.set)
+            await stop.wait()
+            if admin is not None:
+                await admin.stop()
+            await server.stop()
+        finally:
+            if http is not None:
+                http[0].should_exit = True
+                await http[1]
 
     try:
         _run_async(main())
     finally:
         store.close()
     return 0
+
+
+def _dashboard_options(args: argparse.Namespace) -> tuple[Any, str, bool] | None:
+    """Check the dashboard's options before anything starts: ``(line, token, generated)``,
+    or None without ``--http-port`` (then the other dashboard options are refused)."""
+    from railpilot.line.loader import load_line
+    from railpilot.web.app import MIN_TOKEN_CHARS
+
+    if args.http_port is None:
+        for option, value, default in (
+            ("--http-host", args.http_host, DEFAULT_HTTP_HOST),
+            ("--dispatcher-token", args.dispatcher_token, None),
+            ("--line", args.line, DEFAULT_LINE),
+        ):
+            if value != default:
+                shown = "<hidden>" if option == "--dispatcher-token" else value
+                raise ConfigError(option, shown, "to be given with --http-port (the dashboard)")
+        return None
+    if not 0 <= args.http_port <= 65535:
+        raise ConfigError("--http-port", args.http_port, "0..65535 (0: a free one)")
+    if args.http_host not in HTTP_HOSTS:
+        raise ConfigError(
+            "--http-host",
+            args.http_host,
+            f"a loopback host name ({', '.join(HTTP_HOSTS)}): the dashboard is not to be "
+            "reached from other machines yet (docs/dashboard.md)",
+        )
+    token = args.dispatcher_token
+    generated = token is None
+    if token is None:
+        token = secrets.token_urlsafe(16)
+    elif len(token) < MIN_TOKEN_CHARS or any(c.isspace() or not c.isprintable() for c in token):
+        raise ConfigError(
+            "--dispatcher-token",
+            "<hidden>",
+            f"at least {MIN_TOKEN_CHARS} printable characters without spaces",
+        )
+    try:
+        line = load_line(args.line)
+    except ConfigError as exc:
+        raise ConfigError("--line", args.line, f"a line that loads ({exc})") from None
+    return line, token, generated
+
+
+async def _start_dashboard(
+    server: Any, args: argparse.Namespace, line: Any, token: str, generated: bool
+) -> tuple[Any, asyncio.Task[None]]:
+    """Serve the dashboard over ``server`` in this loop; print its address (and the token
+    when it was made up here: it is printed once, never logged)."""
+    from railpilot.web.ground_source import ServerSource, serve_dashboard
+
+    source = ServerSource(server, line)
+    try:
+        http, task = await serve_dashboard(
+            source, token=token, host=args.http_host, port=args.http_port
+        )
+    except ConfigError as exc:
+        raise ConfigError("--http-port", args.http_port, exc.allowed) from None
+    shown = token if generated else "(the one given with --dispatcher-token)"
+    print(
+        f"dashboard: http://{args.http_host}:{http.port}/  token: {shown}",
+        file=sys.stderr,
+        flush=True,
+    )
+    return http, task
 
 
 def _ground_admin(args: argparse.Namespace) -> int:

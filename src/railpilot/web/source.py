@@ -2,13 +2,12 @@
 
 The web app (app.py) is a thin adapter: it asks a source for JSON-ready snapshots, hands
 the dispatcher's TSR form to it and pushes the snapshots over a WebSocket. The source owns
-the ground's state and its clock; the app never interprets a snapshot. Two sources exist
-or are planned:
+the ground's state and its clock; the app never interprets a snapshot. Two sources exist:
 
 - :class:`railpilot.web.fake.FakeGround`: a deterministic line full of trains, for the
   tests and the screenshot demo;
-- the ground server (net/server.py), once wired (docs/dashboard.md, "Wiring the ground
-  server").
+- :class:`railpilot.web.ground_source.ServerSource`: the live ground server
+  (net/server.py), in its event loop (docs/dashboard.md, "The live ground").
 
 Snapshot (``snapshot(now_s)``), in the dispatcher's units (km posts in km, speeds in km/h,
 times in s of the ground clock)::

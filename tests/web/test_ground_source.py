@@ -1,0 +1,152 @@
+"""ServerSource over a live GroundServer and onboard clients on loopback TCP (no browser).
+
+Everything runs in one event loop, bounded by ``asyncio.timeout``; waits poll a condition
+(no sleeps as waits, no timed assertions). Each runs in a thread of its own (``_run``).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import json
+from collections.abc import Callable, Coroutine
+from concurrent.futures import ThreadPoolExecutor
+from typing import Any
+
+from railpilot.line.loader import load_line
+from railpilot.link import GroundConfig, KeyStore, OnboardConfig, TravelDirection, TsrState
+from railpilot.net import GroundServer, OnboardClient, Trajectory
+from railpilot.web.ground_source import ServerSource
+from railpilot.web.source import DashboardSource
+
+from .test_live_dashboard import CONCERNED, FAST, GROUND_ID, LENGTH_M, TRAINS
+
+
+def _run(coro: Coroutine[Any, Any, None]) -> None:
+    """``asyncio.run`` in a thread of its own: after a browser test, Playwright's sync API
+    leaves an event loop marked running in the main thread for the rest of the session."""
+    with ThreadPoolExecutor(1) as pool:
+        pool.submit(asyncio.run, coro).result(timeout=60.0)
+
+
+async def _until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
+    async with asyncio.timeout(timeout_s):
+        while not condition():
+            await asyncio.sleep(0.01)
+
+
+async def _scenario() -> None:
+    keys = KeyStore()
+    for i, (train_id, *_) in enumerate(TRAINS):
+        keys.add_key(train_id, 1, bytes((b + i) % 256 for b in range(32)))
+    server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+    source = ServerSource(server, load_line("heavy-haul"))
+    assert isinstance(source, DashboardSource)
+    _, port = await server.start()
+    stop = asyncio.Event()
+    tasks = []
+    try:
+        for train_id, km, travel, speed in TRAINS:
+            config = OnboardConfig(
+                train_id=train_id,
+                ground_id=GROUND_ID,
+                train_number=f"K{train_id}",
+                loco_number="HXD1-01",
+                driver_id=7,
+                train_length_m=LENGTH_M,
+                timers=FAST,
+            )
+            trajectory = Trajectory(start_m=km * 1000.0, speed_mps=speed, direction=travel)
+            client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
+            tasks.append(asyncio.create_task(client.run(stop)))
+
+        def trains() -> list[dict]:
+            return list(source.snapshot(source.now_s())["trains"])
+
+        await _until(lambda: len(trains()) == 3 and all(t["valid"] for t in trains()))
+        version = source.version()
+        await _until(lambda: source.version() > version)  # every report bumps it
+        snap = source.snapshot(source.now_s())
+        json.dumps(snap, allow_nan=False)  # strict JSON
+        by_id = {t["id"]: t for t in snap["trains"]}
+        assert by_id[2002]["direction"] == "down" and by_id[2001]["direction"] == "up"
+        assert by_id[2001]["length_km"] == LENGTH_M / 1000.0
+        assert all(t["link"]["connected"] and not t["alarms"] for t in snap["trains"])
+        assert snap["blocks"]  # each train occupies a block
+        assert all(g["actual"] for g in snap["graph"]["trains"])
+
+        # a bad form: every field named, nothing sent
+        answer = source.set_tsr({"start_km": "x", "limit_kmh": "fast"}, "d", source.now_s())
+        assert set(answer["errors"]) >= {"start_km", "end_km", "limit_kmh", "reason"}
+        assert all(not r.tsrs for r in server.records.values())
+
+        form = {
+            "start_km": 300,
+            "end_km": 330,
+            "limit_kmh": 40,
+            "valid_until_min": 60,
+            "reason": "sun kink check",
+        }
+        answer = source.set_tsr(form, "dispatcher", source.now_s())
+        assert answer["ok"]["session"] == 1 and answer["ok"]["set_by"] == "dispatcher"
+        assert source.concerned(1) == CONCERNED
+        await _until(lambda: all(source.delivery_state(1, t) is TsrState.ACTIVE for t in CONCERNED))
+        assert source.delivery_state(1, 2003) is None  # past the TSR: not concerned
+        tsr = source.snapshot(source.now_s())["tsrs"][0]
+        assert [(d["train"], d["state"]) for d in tsr["deliveries"]] == [
+            (2001, "ACTIVE"),
+            (2002, "ACTIVE"),
+        ]
+        assert tsr["state"] == "ACTIVE"
+
+        assert "session" in source.cancel_tsr(9, "dispatcher", source.now_s())["errors"]
+        assert "ok" in source.cancel_tsr(1, "dispatcher", source.now_s())
+        await _until(
+            lambda: all(source.delivery_state(1, t) is TsrState.CANCELLED for t in CONCERNED)
+        )
+        assert source.snapshot(source.now_s())["tsrs"][0]["state"] == "CANCELLED"
+    finally:
+        stop.set()
+        async with asyncio.timeout(10.0):
+            await asyncio.gather(*tasks, return_exceptions=True)
+            await server.stop(timeout_s=2.0)
+
+
+def test_server_source_sets_and_cancels_a_tsr_on_real_trains() -> None:
+    _run(_scenario())
+
+
+def test_a_train_reaching_a_tsr_later_gets_it() -> None:
+    async def scenario() -> None:
+        keys = KeyStore()
+        keys.add_key(3001, 1, bytes(range(32)))
+        server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+        source = ServerSource(server, load_line("heavy-haul"))
+        _, port = await server.start()
+        stop = asyncio.Event()
+        task = None
+        try:
+            now = source.now_s()
+            form = {"start_km": 100, "end_km": 101, "limit_kmh": 40, "valid_until_min": 30}
+            answer = source.set_tsr({**form, "reason": "before any train"}, "d", now)
+            assert answer["ok"]["deliveries"] == []
+            config = OnboardConfig(
+                train_id=3001,
+                ground_id=GROUND_ID,
+                train_number="K3001",
+                loco_number="HXD1-02",
+                driver_id=7,
+                train_length_m=LENGTH_M,
+                timers=FAST,
+            )
+            trajectory = Trajectory(start_m=90_000.0, direction=TravelDirection.UP)
+            client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
+            task = asyncio.create_task(client.run(stop))
+            await _until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
+        finally:
+            stop.set()
+            async with asyncio.timeout(10.0):
+                if task is not None:
+                    await task
+                await server.stop(timeout_s=2.0)
+
+    _run(scenario())
