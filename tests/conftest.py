@@ -14,6 +14,7 @@ import pytest
 
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
     def uses_a_browser(item: pytest.Item) -> bool:
-        return "page" in getattr(item, "fixturenames", ())
+        fixtures = getattr(item, "fixturenames", ())
+        return "page" in fixtures or item.get_closest_marker("browser") is not None
 
     items.sort(key=uses_a_browser)  # stable: the order within each group is kept

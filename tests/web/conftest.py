@@ -10,29 +10,16 @@ from __future__ import annotations
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import pytest
-import uvicorn
 
-from railpilot.web.app import create_app, server_config
+from railpilot.web.app import ThreadedServer, create_app, server_config
+from railpilot.web.browser import CHROMIUM, CHROMIUM_FLAGS
 from railpilot.web.fake import FakeGround
 
 #: The dispatcher token of every test.
 TOKEN = "test-dispatcher-token-0123456789"
-#: Debian's chromium (apt-get install chromium).
-CHROMIUM = Path("/usr/bin/chromium")
-CHROMIUM_FLAGS = (
-    "--headless=new",
-    "--no-sandbox",
-    "--disable-gpu",
-    "--disable-quic",
-    "--no-first-run",
-    "--disable-background-networking",
-    "--disable-component-update",
-    "--disable-sync",
-)
 #: Longest wait for the server to start [s] (a deadline, not a sleep).
 START_DEADLINE_S = 20.0
 
@@ -59,20 +46,6 @@ def ground() -> FakeGround:
     return FakeGround(24, seed=0)
 
 
-class _Server(uvicorn.Server):
-    """uvicorn's server that says when it has started (or given up)."""
-
-    def __init__(self, config: uvicorn.Config) -> None:
-        super().__init__(config)
-        self.ready = threading.Event()
-
-    async def startup(self, sockets: Any = None) -> None:
-        try:
-            await super().startup(sockets)
-        finally:
-            self.ready.set()
-
-
 @dataclass
 class Served:
     url: str
@@ -82,15 +55,8 @@ class Served:
 @pytest.fixture
 def served(ground: FakeGround) -> Iterator[Served]:
     """The dashboard over ``ground`` on 127.0.0.1, an ephemeral port, in a thread."""
-    server = _Server(server_config(create_app(ground, token=TOKEN), port=0))
-
-    def run() -> None:
-        try:
-            server.run()
-        finally:
-            server.ready.set()  # a server that failed to start must not be waited for
-
-    thread = threading.Thread(target=run, name="dashboard", daemon=True)
+    server = ThreadedServer(server_config(create_app(ground, token=TOKEN), port=0))
+    thread = threading.Thread(target=server.run_in_thread, name="dashboard", daemon=True)
     thread.start()
     assert server.ready.wait(START_DEADLINE_S), "the dashboard did not start in time"
     assert server.started, "the dashboard failed to start (see the log above)"

@@ -19,6 +19,8 @@ REPRODUCTIONS: dict[str, str] = {
     "link-demo": "railpilot.reproduce.link_demo",
     "precise-stop": "railpilot.reproduce.precise_stop",
     "retiming": "railpilot.reproduce.retiming",
+    # last: Playwright's sync API leaves an event loop marked running in this thread
+    "dashboard": "railpilot.reproduce.dashboard",
 }
 
 

@@ -25,6 +25,7 @@ import asyncio
 import contextlib
 import hmac
 import json
+import threading
 from collections.abc import Sequence
 from importlib import resources
 from pathlib import Path
@@ -225,3 +226,25 @@ def server_config(app: Starlette, *, host: str = DEFAULT_HOST, port: int = 8080)
         timeout_graceful_shutdown=5,  # open WebSockets get this long [s] to close
         ws="websockets-sansio",
     )
+
+
+class ThreadedServer(uvicorn.Server):
+    """uvicorn's server for a background thread: ``ready`` is set once it has started or
+    given up (``started`` tells which), so a caller waits on an event, not a sleep."""
+
+    def __init__(self, config: uvicorn.Config) -> None:
+        super().__init__(config)
+        self.ready = threading.Event()
+
+    async def startup(self, sockets: Any = None) -> None:
+        try:
+            await super().startup(sockets)
+        finally:
+            self.ready.set()
+
+    def run_in_thread(self) -> None:
+        """The thread's target: serve, and never leave a waiter hanging."""
+        try:
+            self.run()
+        finally:
+            self.ready.set()

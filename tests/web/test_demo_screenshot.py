@@ -1,0 +1,34 @@
+"""The report's dashboard screenshot (`railpilot reproduce dashboard`, part of make demo)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from railpilot.reproduce import dashboard
+from railpilot.web.browser import CHROMIUM
+
+
+@pytest.mark.browser
+@pytest.mark.skipif(not CHROMIUM.exists(), reason=f"Debian's chromium is not at {CHROMIUM}")
+def test_the_demo_writes_a_screenshot_with_every_train(tmp_path: Path) -> None:
+    reproduction = dashboard.run(tmp_path)
+    (figure,) = reproduction.figures
+    assert figure == tmp_path / "dashboard.png"
+    # a full page of a 1600 px wide dashboard, not an empty or error page
+    assert figure.stat().st_size > 100_000
+    assert reproduction.payload["trains"] >= 20
+
+
+def test_without_chromium_the_report_says_so_and_shows_nothing(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import railpilot.web.browser as browser
+
+    monkeypatch.setattr(browser, "CHROMIUM", tmp_path / "no-chromium")
+    reproduction = dashboard.run(tmp_path)
+    assert reproduction.figures == []
+    assert reproduction.payload["screenshot"] is None
+    assert "chromium is not installed" in reproduction.findings[0]
+    assert not (tmp_path / "dashboard.png").exists()
