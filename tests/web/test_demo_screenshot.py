@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import threading
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -13,7 +15,14 @@ from railpilot.web.browser import CHROMIUM
 @pytest.mark.browser
 @pytest.mark.skipif(not CHROMIUM.exists(), reason=f"Debian's chromium is not at {CHROMIUM}")
 def test_the_demo_writes_a_screenshot_with_every_train(tmp_path: Path) -> None:
-    reproduction = dashboard.run(tmp_path)
+    # in a thread of its own, as in `make demo`: pytest-playwright's browser tests leave an
+    # event loop running in this thread, and Playwright's sync API refuses to start there
+    results: list[Any] = []
+    worker = threading.Thread(target=lambda: results.append(dashboard.run(tmp_path)))
+    worker.start()
+    worker.join(120.0)
+    assert not worker.is_alive(), "the screenshot did not finish"
+    (reproduction,) = results
     (figure,) = reproduction.figures
     assert figure == tmp_path / "dashboard.png"
     # a full page of a 1600 px wide dashboard, not an empty or error page
