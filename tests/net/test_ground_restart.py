@@ -124,6 +124,10 @@ class Ground:
         self.db, self.keys, self.timers = db, keys, timers
         self.port, self.admin_port = port, admin_port
         self.lines: list[str] = []
+        #: set by every line the ground logs: its state changes (registrations,
+        #: acknowledgements, restores) are each logged, so a status worth reading again
+        #: comes with a line
+        self._logged = asyncio.Event()
         self.proc: asyncio.subprocess.Process | None = None
         self._reader: asyncio.Task[None] | None = None
 
@@ -161,6 +165,8 @@ class Ground:
         assert self.proc is not None and self.proc.stderr is not None
         async for line in self.proc.stderr:  # keep the pipe drained
             self.lines.append(line.decode(errors="replace"))
+            self._logged.set()
+        self._logged.set()  # it ended: whoever waits reads the status once more
 
     def _ended(self) -> bool:
         return self.proc is not None and self.proc.returncode is not None
@@ -174,11 +180,14 @@ class Ground:
         return {t["train_id"]: t for t in answer["result"]["trains"]}
 
     async def wait_for(self, what: str, predicate: Any) -> dict[int, dict[str, Any]]:
-        """Poll the status until ``predicate(status)`` holds (TimeoutError after WAIT_S)."""
+        """Read the status again after every line the ground logs until ``predicate(status)``
+        holds (TimeoutError after WAIT_S)."""
         async with asyncio.timeout(WAIT_S):
-            while not predicate(status := await self.status()):
-                await asyncio.sleep(0.05)
-        return status
+            while True:
+                self._logged.clear()
+                if predicate(status := await self.status()):
+                    return status
+                await self._logged.wait()
 
     async def kill(self) -> None:
         assert self.proc is not None

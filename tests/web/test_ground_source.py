@@ -28,10 +28,21 @@ def _run(coro: Coroutine[Any, Any, None]) -> None:
         pool.submit(asyncio.run, coro).result(timeout=60.0)
 
 
-async def _until(condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
-    async with asyncio.timeout(timeout_s):
-        while not condition():
-            await asyncio.sleep(0.01)
+class _Changes:
+    """Wakes a waiter on every event the ground server hands out (registrations, running
+    info, acknowledgements): what the conditions below read changes only then."""
+
+    def __init__(self, server: GroundServer) -> None:
+        self._event = asyncio.Event()
+        server.add_listener(lambda *_: self._event.set())
+
+    async def until(self, condition: Callable[[], bool], timeout_s: float = 10.0) -> None:
+        async with asyncio.timeout(timeout_s):
+            while True:
+                self._event.clear()
+                if condition():
+                    return
+                await self._event.wait()
 
 
 async def _scenario() -> None:
@@ -39,6 +50,7 @@ async def _scenario() -> None:
     for i, (train_id, *_) in enumerate(TRAINS):
         keys.add_key(train_id, 1, bytes((b + i) % 256 for b in range(32)))
     server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+    changes = _Changes(server)
     source = ServerSource(server, load_line("heavy-haul"))
     assert isinstance(source, DashboardSource)
     _, port = await server.start()
@@ -62,9 +74,9 @@ async def _scenario() -> None:
         def trains() -> list[dict]:
             return list(source.snapshot(source.now_s())["trains"])
 
-        await _until(lambda: len(trains()) == 3 and all(t["valid"] for t in trains()))
+        await changes.until(lambda: len(trains()) == 3 and all(t["valid"] for t in trains()))
         version = source.version()
-        await _until(lambda: source.version() > version)  # every report bumps it
+        await changes.until(lambda: source.version() > version)  # every report bumps it
         snap = source.snapshot(source.now_s())
         json.dumps(snap, allow_nan=False)  # strict JSON
         by_id = {t["id"]: t for t in snap["trains"]}
@@ -89,7 +101,9 @@ async def _scenario() -> None:
         answer = source.set_tsr(form, "dispatcher", source.now_s())
         assert answer["ok"]["session"] == 1 and answer["ok"]["set_by"] == "dispatcher"
         assert source.concerned(1) == CONCERNED
-        await _until(lambda: all(source.delivery_state(1, t) is TsrState.ACTIVE for t in CONCERNED))
+        await changes.until(
+            lambda: all(source.delivery_state(1, t) is TsrState.ACTIVE for t in CONCERNED)
+        )
         assert source.delivery_state(1, 2003) is None  # past the TSR: not concerned
         tsr = source.snapshot(source.now_s())["tsrs"][0]
         assert [(d["train"], d["state"]) for d in tsr["deliveries"]] == [
@@ -100,7 +114,7 @@ async def _scenario() -> None:
 
         assert "session" in source.cancel_tsr(9, "dispatcher", source.now_s())["errors"]
         assert "ok" in source.cancel_tsr(1, "dispatcher", source.now_s())
-        await _until(
+        await changes.until(
             lambda: all(source.delivery_state(1, t) is TsrState.CANCELLED for t in CONCERNED)
         )
         assert source.snapshot(source.now_s())["tsrs"][0]["state"] == "CANCELLED"
@@ -120,6 +134,7 @@ def test_a_train_reaching_a_tsr_later_gets_it() -> None:
         keys = KeyStore()
         keys.add_key(3001, 1, bytes(range(32)))
         server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+        changes = _Changes(server)
         source = ServerSource(server, load_line("heavy-haul"))
         _, port = await server.start()
         stop = asyncio.Event()
@@ -141,7 +156,7 @@ def test_a_train_reaching_a_tsr_later_gets_it() -> None:
             trajectory = Trajectory(start_m=90_000.0, direction=TravelDirection.UP)
             client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
             task = asyncio.create_task(client.run(stop))
-            await _until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
+            await changes.until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
         finally:
             stop.set()
             async with asyncio.timeout(10.0):
