@@ -6,6 +6,7 @@ user can fix a scenario file without reading our code.
 
 from __future__ import annotations
 
+import math
 from typing import Any
 
 
@@ -50,3 +51,13 @@ class LineError(ConfigError):
         self.source = source
         if source is not None:
             self.args = (f"{source}: {self.args[0]}",)
+
+
+def is_finite_number(value: object) -> bool:
+    """A real, finite number (an int or a float, not a bool): what a check of a number
+    from a file, a form or a message starts from."""
+    return (
+        isinstance(value, int | float)
+        and not isinstance(value, bool)
+        and math.isfinite(float(value))
+    )

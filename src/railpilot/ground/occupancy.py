@@ -33,12 +33,11 @@ Rules
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from types import MappingProxyType
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import BlockSection, RailLine
 from railpilot.link.messages import U32_MAX, RunningInfo, TravelDirection
 
@@ -50,14 +49,6 @@ MAX_TRAIN_LENGTH_M = 10_000.0
 #: Default validity of a report [s]: the link declares running info timed out after more
 #: than 3 missed cycles of 1 s (LinkTimers defaults), so 4 s.
 DEFAULT_VALIDITY_S = 4.0
-
-
-def _is_number(value: object) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 def check_train_id(value: object, field: str = "train_id") -> int:
@@ -133,16 +124,16 @@ class TrainReport:
 
     def __post_init__(self) -> None:
         check_train_id(self.train_id, "report.train_id")
-        if not _is_number(self.head_m) or self.head_m < 0:
+        if not is_finite_number(self.head_m) or self.head_m < 0:
             raise ConfigError("report.head_m", self.head_m, "a finite km post >= 0 [m]")
         check_travel_direction(self.direction, "report.direction")
-        if not _is_number(self.length_m) or not 0 < self.length_m <= MAX_TRAIN_LENGTH_M:
+        if not is_finite_number(self.length_m) or not 0 < self.length_m <= MAX_TRAIN_LENGTH_M:
             raise ConfigError(
                 "report.length_m",
                 self.length_m,
                 f"a train length > 0 and <= {MAX_TRAIN_LENGTH_M:g} m",
             )
-        if not _is_number(self.reported_s):
+        if not is_finite_number(self.reported_s):
             raise ConfigError("report.reported_s", self.reported_s, "a finite time [s]")
 
     @classmethod
@@ -169,7 +160,7 @@ class OccupancyConfig:
     stale_blocks_ahead: int = 1
 
     def __post_init__(self) -> None:
-        if not _is_number(self.validity_s) or self.validity_s <= 0:
+        if not is_finite_number(self.validity_s) or self.validity_s <= 0:
             raise ConfigError("occupancy.validity_s", self.validity_s, "a finite time > 0 [s]")
         blocks = self.stale_blocks_ahead
         if type(blocks) is not int or blocks < 0:
@@ -215,7 +206,7 @@ class TrainOccupancy:
         check_train_id(self.train_id, "occupancy.train_id")
         check_travel_direction(self.direction, "occupancy.direction")
         for name in ("head_m", "tail_m", "reported_s"):
-            if not _is_number(getattr(self, name)):
+            if not is_finite_number(getattr(self, name)):
                 raise ConfigError(f"occupancy.{name}", getattr(self, name), "a finite number")
         ids = tuple(self.block_ids)
         if not ids or not all(isinstance(i, str) for i in ids):
@@ -250,7 +241,7 @@ class Occupancy:
     _by_block: Mapping[str, tuple[int, ...]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        if not _is_number(self.now_s):
+        if not is_finite_number(self.now_s):
             raise ConfigError("occupancy.now_s", self.now_s, "a finite time [s]")
         trains = tuple(self.trains)
         seen: set[int] = set()
@@ -304,7 +295,7 @@ class Occupancy:
 
 
 def _check_on_line(line: RailLine, position_m: float, field: str) -> None:
-    if not _is_number(position_m) or not line.start_m <= position_m <= line.end_m:
+    if not is_finite_number(position_m) or not line.start_m <= position_m <= line.end_m:
         raise ConfigError(
             field,
             position_m,
@@ -322,7 +313,7 @@ def occupied_blocks(
     """
     sign = direction_sign(direction)
     _check_on_line(line, head_m, "head_m")
-    if not _is_number(length_m) or length_m <= 0:
+    if not is_finite_number(length_m) or length_m <= 0:
         raise ConfigError("length_m", length_m, "a train length > 0 [m]")
     tail_m = min(max(head_m - sign * length_m, line.start_m), line.end_m)
     low, high = min(head_m, tail_m), max(head_m, tail_m)
@@ -344,7 +335,7 @@ def compute_occupancy(
     ``config.validity_s`` give a conservative occupancy (module docstring).
     """
     cfg = config if config is not None else OccupancyConfig()
-    if not _is_number(now_s):
+    if not is_finite_number(now_s):
         raise ConfigError("now_s", now_s, "a finite time [s]")
     blocks_by_id(line)  # ids must be unique: the occupancy is keyed by them
     trains: list[TrainOccupancy] = []

@@ -20,7 +20,7 @@ from collections import Counter
 from collections.abc import Iterable
 from dataclasses import dataclass, field, replace
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, is_finite_number
 from railpilot.link.checks import Check
 from railpilot.link.messages import U32_MAX, PlannedCurve, RegisterRequest, RunningInfo
 
@@ -41,7 +41,7 @@ class TimetableStop:
     def __post_init__(self) -> None:
         if type(self.station_id) is not int or not 0 <= self.station_id <= U32_MAX:
             raise ConfigError("stop.station_id", self.station_id, "a station id")
-        if not (_finite(self.arrival_s) and _finite(self.departure_s)):
+        if not (is_finite_number(self.arrival_s) and is_finite_number(self.departure_s)):
             raise ConfigError("stop.arrival_s", self.arrival_s, "finite times [s]")
         if self.departure_s < self.arrival_s:
             raise ConfigError(
@@ -154,9 +154,9 @@ class TrainRegistry:
     def __init__(
         self, validity_s: float = DEFAULT_VALIDITY_S, off_plan_s: float = DEFAULT_OFF_PLAN_S
     ) -> None:
-        if not (_finite(validity_s) and validity_s > 0):
+        if not (is_finite_number(validity_s) and validity_s > 0):
             raise ConfigError("validity_s", validity_s, "a time > 0 [s]")
-        if not (_finite(off_plan_s) and off_plan_s > 0):
+        if not (is_finite_number(off_plan_s) and off_plan_s > 0):
             raise ConfigError("off_plan_s", off_plan_s, "a time > 0 [s]")
         self.validity_s = float(validity_s)
         self.off_plan_s = float(off_plan_s)
@@ -294,15 +294,7 @@ def with_departure(timetable: TrainTimetable, departure_s: float) -> TrainTimeta
     )
 
 
-def _finite(value: object) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
-
-
 def _time(now_s: float) -> float:
-    if not _finite(now_s):
+    if not is_finite_number(now_s):
         raise ConfigError("now_s", now_s, "a finite time [s]")
     return float(now_s)

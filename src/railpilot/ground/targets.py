@@ -57,7 +57,7 @@ import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import BlockSection, RailLine
 from railpilot.link.messages import U32_MAX, TargetPoint, TargetReason, TravelDirection
 
@@ -83,14 +83,6 @@ REASON_PRECEDENCE: tuple[TargetReason, ...] = (
 )
 #: Reason of the ``TargetPoint`` that represents a clear (module docstring).
 CLEAR_REASON = TargetReason.OTHER
-
-
-def _is_number(value: object) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
 
 
 # ---------------------------------------------------------------------------- declarations
@@ -130,7 +122,7 @@ class DeclaredRestriction:
             return
         for name in ("start_m", "end_m"):
             value = getattr(self, name)
-            if not _is_number(value) or value < 0:
+            if not is_finite_number(value) or value < 0:
                 raise ConfigError(
                     f"restriction.{name}", value, "a finite km post >= 0 [m] (or give a block_id)"
                 )
@@ -228,7 +220,7 @@ class Target:
     signal_id: str | None
 
     def __post_init__(self) -> None:
-        if not _is_number(self.position_m):
+        if not is_finite_number(self.position_m):
             raise ConfigError("target.position_m", self.position_m, "a finite km post [m]")
         if not isinstance(self.reason, TargetReason):
             raise ConfigError("target.reason", self.reason, "a TargetReason")
@@ -237,7 +229,7 @@ class Target:
 def _check_horizon(line: RailLine, train_id: int, horizon_m: object) -> float:
     if (
         isinstance(horizon_m, int | float)
-        and _is_number(horizon_m)
+        and is_finite_number(horizon_m)
         and line.start_m <= horizon_m <= line.end_m
     ):
         return float(horizon_m)
@@ -421,7 +413,7 @@ class TargetPointTracker:
             raise ConfigError(
                 "occupancy.line_name", occupancy.line_name, f"'{self.line.name}', the tracker's"
             )
-        if not _is_number(now_s) or now_s < self._last_now_s:
+        if not is_finite_number(now_s) or now_s < self._last_now_s:
             raise ConfigError(
                 "now_s", now_s, f"a finite time not before the last update, {self._last_now_s}"
             )

@@ -20,12 +20,11 @@ the actions to carry out, in a deterministic order (by session, then train id).
 
 from __future__ import annotations
 
-import math
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import UP
 from railpilot.link.messages import MAX_POSITION_M, U32_MAX, TravelDirection, TsrSet
 
@@ -59,13 +58,13 @@ class LineTsr:
             raise ConfigError("tsr.session", self.session, f"an integer in [1, {U32_MAX}]")
         for name in ("start_m", "end_m"):
             value = getattr(self, name)
-            if not _finite(value) or not 0.0 <= value <= MAX_POSITION_M:
+            if not is_finite_number(value) or not 0.0 <= value <= MAX_POSITION_M:
                 raise ConfigError(f"tsr.{name}", value, "a km post [m] on the line")
         if not self.start_m < self.end_m:
             raise ConfigError("tsr.end_m", self.end_m, f"a km post above start_m = {self.start_m}")
-        if not _finite(self.limit_mps) or not 0.0 < self.limit_mps <= 100.0:
+        if not is_finite_number(self.limit_mps) or not 0.0 < self.limit_mps <= 100.0:
             raise ConfigError("tsr.limit_mps", self.limit_mps, "a speed in (0, 100] m/s")
-        if not (_finite(self.valid_from_s) and _finite(self.valid_until_s)):
+        if not (is_finite_number(self.valid_from_s) and is_finite_number(self.valid_until_s)):
             raise ConfigError("tsr.valid_until_s", self.valid_until_s, "finite validity times [s]")
         if not self.valid_from_s < self.valid_until_s:
             raise ConfigError(
@@ -107,9 +106,9 @@ class TrainRoute:
             )
         for name in ("head_m", "destination_m"):
             value = getattr(self, name)
-            if not _finite(value) or not 0.0 <= value <= MAX_POSITION_M:
+            if not is_finite_number(value) or not 0.0 <= value <= MAX_POSITION_M:
                 raise ConfigError(f"route.{name}", value, "a km post [m] on the line")
-        if not _finite(self.length_m) or not 0.0 <= self.length_m <= 10_000.0:
+        if not is_finite_number(self.length_m) or not 0.0 <= self.length_m <= 10_000.0:
             raise ConfigError("route.length_m", self.length_m, "a length in [0, 10000] m")
 
     def remaining(self) -> tuple[float, float]:
@@ -166,7 +165,7 @@ class TsrManager:
     """
 
     def __init__(self, top_speed_mps: float) -> None:
-        if not _finite(top_speed_mps) or not top_speed_mps > 0:
+        if not is_finite_number(top_speed_mps) or not top_speed_mps > 0:
             raise ConfigError("top_speed_mps", top_speed_mps, "a speed > 0 [m/s]")
         self.top_speed_mps = float(top_speed_mps)
         self._tsrs: dict[int, _Entry] = {}
@@ -275,14 +274,6 @@ class TsrManager:
         return actions
 
 
-def _finite(value: object) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
-
-
 def _check_time(now_s: float) -> None:
-    if not _finite(now_s):
+    if not is_finite_number(now_s):
         raise ConfigError("now_s", now_s, "a finite time [s]")

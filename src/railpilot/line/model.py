@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import math
 import re
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -41,7 +40,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from railpilot.errors import LineError
+from railpilot.errors import LineError, is_finite_number
 from railpilot.link.messages import TravelDirection
 from railpilot.units import m_to_km_post, mps_to_kmh
 from railpilot.vehicle.line import Line, Segment
@@ -98,19 +97,11 @@ def _span(start_m: float, end_m: float) -> str:
     return f"km {_km(start_m)}-{_km(end_m)}"
 
 
-def _finite(value: object) -> bool:
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
-
-
 def _check_span(start_m: float, end_m: float) -> None:
     """A section ``[start_m, end_m]`` of finite km posts with ``start_m < end_m``."""
-    if not _finite(start_m):
+    if not is_finite_number(start_m):
         raise LineError("start_km", start_m, "a finite km post")
-    if not _finite(end_m):
+    if not is_finite_number(end_m):
         raise LineError("end_km", end_m, "a finite km post")
     if not end_m > start_m:
         raise LineError(
@@ -133,7 +124,7 @@ class Gradient:
 
     def __post_init__(self) -> None:
         _check_span(self.start_m, self.end_m)
-        if not _finite(self.permille) or abs(self.permille) > MAX_GRADIENT_PERMILLE:
+        if not is_finite_number(self.permille) or abs(self.permille) > MAX_GRADIENT_PERMILLE:
             raise LineError(
                 "permille",
                 self.permille,
@@ -152,7 +143,7 @@ class Curve:
 
     def __post_init__(self) -> None:
         _check_span(self.start_m, self.end_m)
-        if not _finite(self.radius_m) or self.radius_m < MIN_CURVE_RADIUS_M:
+        if not is_finite_number(self.radius_m) or self.radius_m < MIN_CURVE_RADIUS_M:
             raise LineError(
                 "radius_m", self.radius_m, f"a finite radius >= {MIN_CURVE_RADIUS_M:g} m"
             )
@@ -174,10 +165,12 @@ class SpeedLimit:
     def __post_init__(self) -> None:
         _check_span(self.start_m, self.end_m)
         low, high = LIMIT_RANGE_KMH
-        if not _finite(self.limit_mps) or not (
+        if not is_finite_number(self.limit_mps) or not (
             low - 1e-9 <= mps_to_kmh(self.limit_mps) <= high + 1e-9
         ):
-            value = mps_to_kmh(self.limit_mps) if _finite(self.limit_mps) else self.limit_mps
+            value = (
+                mps_to_kmh(self.limit_mps) if is_finite_number(self.limit_mps) else self.limit_mps
+            )
             raise LineError("limit_kmh", value, f"a limit from {low:g} to {high:g} km/h")
         if self.direction is not None:
             check_direction(self.direction)
@@ -212,18 +205,18 @@ class Station:
             raise LineError("id", self.id, f"an integer from 0 to {MAX_STATION_ID}")
         if not isinstance(self.name, str) or not self.name.strip():
             raise LineError("name", self.name, "a non-empty string")
-        if not _finite(self.centre_m):
+        if not is_finite_number(self.centre_m):
             raise LineError("km", self.centre_m, "a finite km post")
         low, high = LOOP_RANGE_M
-        if not _finite(self.loop_length_m) or not low <= self.loop_length_m <= high:
+        if not is_finite_number(self.loop_length_m) or not low <= self.loop_length_m <= high:
             raise LineError(
                 "loop_length_m", self.loop_length_m, f"a length from {low:g} to {high:g} m"
             )
         for key, stop in (("stop_up_km", self.stop_up_m), ("stop_down_km", self.stop_down_m)):
-            if not _finite(stop) or not (
+            if not is_finite_number(stop) or not (
                 self.loop_start_m - TOLERANCE_M <= stop <= self.loop_end_m + TOLERANCE_M
             ):
-                value = m_to_km_post(stop) if _finite(stop) else stop
+                value = m_to_km_post(stop) if is_finite_number(stop) else stop
                 raise LineError(
                     key,
                     value,
@@ -258,7 +251,7 @@ class Signal:
     def __post_init__(self) -> None:
         if not isinstance(self.id, str) or not self.id.strip():
             raise LineError("id", self.id, "a non-empty string")
-        if not _finite(self.position_m):
+        if not is_finite_number(self.position_m):
             raise LineError("km", self.position_m, "a finite km post")
         check_direction(self.direction)
         if self.kind not in SIGNAL_KINDS:
@@ -484,20 +477,20 @@ class RailLine:
             object.__setattr__(self, name, tuple(getattr(self, name)))
         if not isinstance(self.name, str) or not self.name.strip():
             raise LineError("name", self.name, "a non-empty string")
-        if not _finite(self.start_m) or not 0.0 <= self.start_m < MAX_POSITION_M:
-            value = m_to_km_post(self.start_m) if _finite(self.start_m) else self.start_m
+        if not is_finite_number(self.start_m) or not 0.0 <= self.start_m < MAX_POSITION_M:
+            value = m_to_km_post(self.start_m) if is_finite_number(self.start_m) else self.start_m
             raise LineError(
                 "start_km", value, f"a finite km post from 0 to {m_to_km_post(MAX_POSITION_M):g}"
             )
-        if not _finite(self.end_m) or not self.start_m < self.end_m <= MAX_POSITION_M:
-            value = m_to_km_post(self.end_m) if _finite(self.end_m) else self.end_m
+        if not is_finite_number(self.end_m) or not self.start_m < self.end_m <= MAX_POSITION_M:
+            value = m_to_km_post(self.end_m) if is_finite_number(self.end_m) else self.end_m
             raise LineError(
                 "end_km",
                 value,
                 f"a km post above start_km = {_km(self.start_m)} and at most "
                 f"{m_to_km_post(MAX_POSITION_M):g}",
             )
-        if not _finite(self.start_elevation_m):
+        if not is_finite_number(self.start_elevation_m):
             raise LineError("start_elevation_m", self.start_elevation_m, "a finite elevation [m]")
         self._check_categories()
         self._check_gradients()
