@@ -1,13 +1,24 @@
-"""The ground store (SQLite): round trips, WAL, schema version, audit order, bad input."""
+"""The ground store: round trips, schema version, audit order, bad input - on both
+backends (``sqlite``: a file; ``postgres``: a fresh database on the test server of
+tests/ground/postgres.py, skipped where PostgreSQL is not installed), plus what only
+SQLite has (WAL, a file path). PostgreSQL's own: test_store_postgres.py."""
 
 from __future__ import annotations
 
 import sqlite3
+from contextlib import closing
 from pathlib import Path
 
 import pytest
 
-from railpilot.ground.store import SCHEMA_VERSION, Store, StoreError
+from railpilot.ground.store import (
+    SCHEMA_VERSION,
+    GroundStore,
+    Store,
+    StoreError,
+    is_postgres_url,
+    open_store,
+)
 from railpilot.link import (
     DeliveryState,
     DispatchCommand,
@@ -22,7 +33,28 @@ T0 = 1_700_000_000.0
 TSR = TsrSet(21, 5_000.0, 6_000.0, 40 / 3.6, T0, T0 + 3600.0)
 
 
-def _filled(store: Store) -> None:
+@pytest.fixture(params=["sqlite", "postgres"])
+def target(request: pytest.FixtureRequest, tmp_path: Path) -> str:
+    """Where a store is kept (``open_store`` picks the backend from it)."""
+    if request.param == "sqlite":
+        return str(tmp_path / "ground.db")
+    dsn: str = request.getfixturevalue("postgres_dsn")
+    return dsn
+
+
+def _behind_the_store(target: str, sql: str) -> None:
+    """One statement run past the store, as a DBA or a newer railpilot would."""
+    if is_postgres_url(target):
+        import psycopg
+
+        with psycopg.connect(target, autocommit=True) as db:
+            db.execute(sql.encode())
+    else:
+        with closing(sqlite3.connect(target)) as db, db:
+            db.execute(sql)
+
+
+def _filled(store: GroundStore) -> None:
     store.record_tsr(TSR, actor="dispatcher-7", reason="track work", at_s=T0)
     store.record_tsr_state(1001, 21, TsrState.ACTIVE, at_s=T0 + 1)
     store.record_tsr_state(1002, 21, TsrState.PENDING_SET, at_s=T0 + 1)
@@ -34,7 +66,9 @@ def _filled(store: Store) -> None:
 _P = DeliveryState.PENDING
 
 
-def test_a_file_store_is_in_wal_mode_with_full_sync_and_the_current_schema(tmp_path: Path) -> None:
+def test_a_sqlite_store_is_in_wal_mode_with_full_sync_and_the_current_schema(
+    tmp_path: Path,
+) -> None:
     with Store(tmp_path / "ground.db") as store:
         assert store.journal_mode == "wal"
         assert store.synchronous == "FULL"
@@ -43,14 +77,14 @@ def test_a_file_store_is_in_wal_mode_with_full_sync_and_the_current_schema(tmp_p
         assert store.synchronous == "NORMAL"
 
 
-def test_everything_written_is_loaded_back_after_reopening(tmp_path: Path) -> None:
-    path = tmp_path / "ground.db"
-    with Store(path) as store:
+def test_everything_written_is_loaded_back_after_reopening(target: str) -> None:
+    with open_store(target) as store:
         _filled(store)
-    with Store(path) as store:
+    with open_store(target) as store:
+        assert store.schema_version == SCHEMA_VERSION
         snapshot = store.load()
     stored = snapshot.tsrs[21]
-    assert stored.tsr == TSR  # floats round-trip exactly (REAL is a double)
+    assert stored.tsr == TSR  # floats round-trip exactly (REAL, DOUBLE PRECISION)
     assert (stored.actor, stored.reason, stored.set_at_s) == ("dispatcher-7", "track work", T0)
     assert stored.cancelled_at_s is None
     first, second = snapshot.trains[1001], snapshot.trains[1002]
@@ -62,8 +96,8 @@ def test_everything_written_is_loaded_back_after_reopening(tmp_path: Path) -> No
     assert second.registration is None and second.registered_at_s is None
 
 
-def test_states_are_updated_in_place() -> None:
-    with Store(":memory:") as store:
+def test_states_are_updated_in_place(target: str) -> None:
+    with open_store(target) as store:
         _filled(store)
         store.record_tsr_state(1002, 21, TsrState.ACTIVE, at_s=T0 + 2)
         store.record_tsr_state(1001, 21, TsrState.PENDING_CANCEL, at_s=T0 + 3)
@@ -83,8 +117,8 @@ def test_states_are_updated_in_place() -> None:
     assert first.dispatch_commands[42][1] is DeliveryState.ACKNOWLEDGED
 
 
-def test_a_new_target_point_under_the_same_id_replaces_the_old() -> None:
-    with Store(":memory:") as store:
+def test_a_new_target_point_under_the_same_id_replaces_the_old(target: str) -> None:
+    with open_store(target) as store:
         _filled(store)
         store.record_delivery_state(1001, TargetPoint, 3, DeliveryState.ACKNOWLEDGED, at_s=T0)
         moved = TargetPoint(3, 9_000.0, TargetReason.SECTION_FAULT)
@@ -92,8 +126,8 @@ def test_a_new_target_point_under_the_same_id_replaces_the_old() -> None:
         assert store.load().trains[1001].target_points == {3: (moved, _P)}
 
 
-def test_the_same_tsr_again_is_a_no_op_but_a_reused_session_is_refused() -> None:
-    with Store(":memory:") as store:
+def test_the_same_tsr_again_is_a_no_op_but_a_reused_session_is_refused(target: str) -> None:
+    with open_store(target) as store:
         store.record_tsr(TSR, actor="dispatcher-7", reason="track work", at_s=T0)
         store.record_tsr(TSR, actor="someone-else", reason="", at_s=T0 + 9)
         assert store.load().tsrs[21].actor == "dispatcher-7"
@@ -103,15 +137,15 @@ def test_the_same_tsr_again_is_a_no_op_but_a_reused_session_is_refused() -> None
         assert store.load().tsrs[21].tsr == TSR
 
 
-def test_a_dispatch_command_number_names_one_text_for_good() -> None:
-    with Store(":memory:") as store:
+def test_a_dispatch_command_number_names_one_text_for_good(target: str) -> None:
+    with open_store(target) as store:
         _filled(store)
         with pytest.raises(StoreError, match=r"message\.command_number = 42 is not allowed"):
             store.record_delivery(1001, DispatchCommand(42, "other text"), _P, at_s=T0)
 
 
-def test_the_audit_log_keeps_the_order_of_writing() -> None:
-    with Store(":memory:") as store:
+def test_the_audit_log_keeps_the_order_of_writing(target: str) -> None:
+    with open_store(target) as store:
         first = store.audit("tsr_set", actor="dispatcher-7", at_s=T0 + 5, train_id=1001)
         store.audit(
             "tsr_acknowledged",
@@ -132,8 +166,8 @@ def test_the_audit_log_keeps_the_order_of_writing() -> None:
         ]
 
 
-def test_a_transaction_commits_together_or_not_at_all() -> None:
-    with Store(":memory:") as store:
+def test_a_transaction_commits_together_or_not_at_all(target: str) -> None:
+    with open_store(target) as store:
         store.record_tsr(TSR, actor="dispatcher-7", at_s=T0)
         with pytest.raises(StoreError), store.transaction():
             store.record_tsr_state(1001, 21, TsrState.PENDING_SET, at_s=T0)
@@ -169,9 +203,9 @@ def test_a_transaction_commits_together_or_not_at_all() -> None:
     ],
 )
 def test_bad_input_is_refused_naming_the_field_and_nothing_is_written(
-    call: object, message: str
+    target: str, call: object, message: str
 ) -> None:
-    with Store(":memory:") as store:
+    with open_store(target) as store:
         store.record_tsr(TSR, actor="dispatcher-7", at_s=T0)
         before = (store.load(), store.audit_log())
         with pytest.raises(StoreError, match=message) as raised:
@@ -181,7 +215,7 @@ def test_bad_input_is_refused_naming_the_field_and_nothing_is_written(
         assert (store.load(), store.audit_log()) == before
 
 
-def test_a_bad_path_is_refused(tmp_path: Path) -> None:
+def test_a_bad_sqlite_path_is_refused(tmp_path: Path) -> None:
     with pytest.raises(StoreError, match=r"path = .* not a directory"):
         Store(tmp_path)
     with pytest.raises(StoreError, match=r"path = .* an existing directory"):
@@ -196,16 +230,27 @@ def test_a_bad_path_is_refused(tmp_path: Path) -> None:
     assert not (tmp_path / "x.db").exists()
 
 
-def test_another_schema_is_refused(tmp_path: Path) -> None:
-    path = tmp_path / "ground.db"
-    with Store(path):
+def test_a_store_written_by_a_newer_railpilot_is_refused(target: str) -> None:
+    with open_store(target):
         pass
-    with sqlite3.connect(path) as db:
-        db.execute("UPDATE schema_version SET version = ?", (SCHEMA_VERSION + 1,))
+    _behind_the_store(target, f"UPDATE schema_version SET version = {SCHEMA_VERSION + 1}")
     with pytest.raises(StoreError, match=f"schema_version = {SCHEMA_VERSION + 1} is not allowed"):
-        Store(path)
-    other = tmp_path / "other.db"
-    with sqlite3.connect(other) as db:
-        db.execute("CREATE TABLE t (x)")
-    with pytest.raises(StoreError, match="a railpilot ground store"):
-        Store(other)
+        open_store(target)
+
+
+def test_a_database_of_something_else_is_refused_and_left_alone(target: str) -> None:
+    _behind_the_store(target, "CREATE TABLE t (x INTEGER)")
+    with pytest.raises(StoreError, match=r"(path|db) = .* a railpilot ground store") as raised:
+        open_store(target)
+    assert raised.value.field == ("db" if is_postgres_url(target) else "path")
+    _behind_the_store(target, "INSERT INTO t (x) VALUES (1)")  # still there, untouched
+
+
+def test_open_store_picks_the_backend_from_the_target(tmp_path: Path) -> None:
+    with open_store(tmp_path / "ground.db") as store:
+        assert type(store) is Store and store.path == str(tmp_path / "ground.db")
+    with open_store(":memory:") as store:
+        assert type(store) is Store
+    assert is_postgres_url("postgresql://ground@db/railpilot")
+    assert is_postgres_url("POSTGRES://ground@db/railpilot")
+    assert not is_postgres_url("ground.db") and not is_postgres_url("postgresql.db")

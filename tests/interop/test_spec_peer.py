@@ -433,12 +433,14 @@ def test_tsr_set_via_cli_is_decoded_applied_and_acknowledged(
         "121.5",
         "--limit-kmh",
         "45",
-        "--valid-s",
-        "3600",
+        "--valid-until-min",
+        "60",
+        "--reason",
+        "interop",
         "--json",
     )
     assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["result"]["trains"] == {"1001": "sending"}
+    assert json.loads(r.stdout)["result"]["deliveries"] == {"1001": "sending"}
     (tsr, result), *_ = peer.wait_for(lambda: _tsr_sets(peer, 7), WAIT, "TSR_SET")
     assert result == sp.TSR_APPLIED
     assert (tsr.start_cm, tsr.end_cm, tsr.limit_cms) == (12_000_000, 12_150_000, 1250)
@@ -461,19 +463,20 @@ def test_tsr_cancel_via_cli_is_decoded_and_acknowledged(
             "op": "tsr_set",
             "trains": [1001],
             "session": 8,
-            "start_km": 130.0,
-            "end_km": 129.0,
+            "start_km": 129.0,
+            "end_km": 130.0,
             "limit_kmh": 30,
-            "valid_s": 600,
+            "valid_until_min": 10,
+            "reason": "interop",
         }
     )
-    assert answer == {"ok": True, "result": {"trains": {"1001": "sending"}}}
+    assert answer["ok"] and answer["result"]["deliveries"] == {"1001": "sending"}
     peer.wait_for(lambda: _tsr_sets(peer, 8), WAIT, "TSR_SET 8")
     ground.poll(lambda: ground.train(1001)["tsrs"].get("8") == "ACTIVE", "TSR 8 ACTIVE")
     assert peer.tsrs[8].zone_cm == (12_900_000, 13_000_000 + 60_000)  # either order (6.13)
-    r = ground.cli("tsr", "cancel", "--train", "1001", "--session", "8", "--json")
+    r = ground.cli("tsr", "cancel", "--session", "8", "--json")
     assert r.returncode == 0, r.stderr
-    assert json.loads(r.stdout)["result"]["trains"] == {"1001": "sending"}
+    assert json.loads(r.stdout)["result"]["deliveries"] == {"1001": "sending"}
     _session, result = peer.wait_for(
         lambda: [c for c in peer.events_of("tsr_cancel") if c[0] == 8], WAIT, "TSR_CANCEL 8"
     )[0]
@@ -497,7 +500,8 @@ def test_tsr_set_resent_until_acknowledged(ground: Ground, peer: sp.OnboardPeer)
             "start_km": 140.0,
             "end_km": 141.0,
             "limit_kmh": 60,
-            "valid_s": 600,
+            "valid_until_min": 10,
+            "reason": "interop",
         }
     )
     assert answer["ok"], answer
@@ -519,14 +523,17 @@ def _heartbeats(peer: sp.OnboardPeer) -> int:
         return sum(1 for f in peer.received if f.msg_type == sp.HEARTBEAT)
 
 
+VALID = ("--valid-until-min", "10", "--reason", "interop")
+
+
 def test_tsr_session_reuse_for_other_restriction_refused(
     ground: Ground, peer: sp.OnboardPeer
 ) -> None:
     common = ["--train", "1001", "--session", "10", "--start-km", "150", "--end-km", "151"]
-    r = ground.cli("tsr", "set", *common, "--limit-kmh", "40", "--valid-s", "600")
+    r = ground.cli("tsr", "set", *common, "--limit-kmh", "40", *VALID)
     assert r.returncode == 0, r.stderr
     peer.wait_for(lambda: _tsr_sets(peer, 10), WAIT, "TSR_SET 10")
-    r = ground.cli("tsr", "set", *common, "--limit-kmh", "50", "--valid-s", "600")
+    r = ground.cli("tsr", "set", *common, "--limit-kmh", "50", *VALID)
     assert r.returncode == 2  # link-operations.md: refused for a train
     assert "error" in (r.stdout + r.stderr)
     # a delivery would leave at once, before the ground's next heartbeats: after two more
@@ -617,7 +624,8 @@ def test_reconnect_reconfirms_active_tsr_and_replay_is_rejected(ground: Ground) 
                 "start_km": 200.0,
                 "end_km": 201.0,
                 "limit_kmh": 20,
-                "valid_s": 600,
+                "valid_until_min": 10,
+                "reason": "interop",
             }
         )
         assert answer["ok"], answer
@@ -789,8 +797,9 @@ def test_admin_error_format(ground: Ground) -> None:
             "start_km": 1,
             "end_km": 2,
             "limit_kmh": 10,
-            "valid_s": 10,
+            "valid_until_min": 1,
+            "reason": "interop",
         }
     )
     assert answer["ok"] is False
-    assert re.fullmatch(r"session = 0 is not allowed: expected .+", answer["error"]), answer
+    assert re.fullmatch(r"session: 0 is not allowed: expected .+", answer["error"]), answer

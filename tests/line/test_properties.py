@@ -14,7 +14,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railpilot.line import DIRECTIONS, UP, RailLine, load_line
+from railpilot.line import DIRECTIONS, DOWN, UP, RailLine, load_line
 from railpilot.link.messages import TravelDirection
 
 LINES = {name: load_line(name) for name in ("heavy-haul", "metro")}
@@ -125,3 +125,29 @@ def test_vehicle_line_agrees_at_every_position(case):
     s = float(line.distance_along(x, direction))
     if s < line.length_m:  # the vehicle Line's segments are [s0, s1): its end is outside
         assert vehicle.speed_limit(s) == line.limit_at(category, direction, x)
+
+
+@settings(max_examples=400, deadline=None)
+@given(positions(), st.floats(0.0, 20_000.0))
+def test_block_sections_between_and_indices_agree_with_brute_force(case, length_m):
+    """The bisection the ground's occupancy runs on, against a scan of every section."""
+    name, x, direction, _ = case
+    line = LINES[name]
+    low, high = max(x - length_m, line.start_m), x
+    travel = line.block_sections_for(direction)
+    brute = tuple(s for s in travel if s.start_m <= high and s.end_m >= low)
+    assert line.block_sections_between(low, high, direction) == brute
+    assert all(line.block_index(s.id, direction) == k for k, s in enumerate(travel))
+    other = DOWN if direction == UP else UP
+    assert line.block_index(travel[0].id, other) is None
+
+
+@settings(max_examples=400, deadline=None)
+@given(positions())
+def test_signal_near_agrees_with_brute_force(case):
+    name, x, direction, _ = case
+    line = LINES[name]
+    for signal in line.signals_for(direction)[:50]:
+        assert line.signal_near(signal.position_m + 0.5, direction) == signal.id
+    near = [s.id for s in line.signals if s.direction == direction and abs(s.position_m - x) <= 1.0]
+    assert line.signal_near(x, direction) == (near[0] if near else None)

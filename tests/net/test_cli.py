@@ -146,19 +146,24 @@ def test_serve_answers_admin_commands_and_stops_on_sigterm(
         assert status["ok"] and status["result"]["trains"] == []
         assert status["result"]["port"] == port
         # No train has registered: 'all' is refused with exit code 2.
-        argv = ["ground", "tsr", "cancel", "--train", "all", "--session", "1"]
+        argv = ["ground", "dispatch", "--train", "all", "--text", "hold"]
         assert main([*argv, "--admin-port", str(admin_port)]) == 2
-        capsys.readouterr()
-        # Operator input the server refuses with exit code 2 and a field = value message.
-        tsr = ["ground", "tsr", "set", "--session", "7", "--limit-kmh", "45", "--valid-s", "60"]
-        tsr += ["--admin-port", str(admin_port)]
+        assert "trains: 'all' is not allowed" in capsys.readouterr().err
+        # Operator input the server refuses with exit code 2 and a field: message line.
+        tsr = ["ground", "tsr", "set", "--session", "7", "--limit-kmh", "45"]
+        tsr += ["--valid-until-min", "1", "--reason", "works", "--admin-port", str(admin_port)]
         argv = [*tsr, "--train", "1001", "--train", "2002", "--start-km", "1", "--end-km", "2"]
         assert main(argv) == 2
         err = capsys.readouterr().err
-        assert "trains = [2002] is not allowed: expected train ids that have a key" in err
+        assert "trains: [2002] is not allowed: expected train ids that have a key" in err
         assert main([*tsr, "--train", "1001", "--start-km", "120", "--end-km", "120.0"]) == 2
         err = capsys.readouterr().err
-        assert "end_km = 120.0 is not allowed: expected a km post at least 1 cm away" in err
+        assert "end_km: 120.0 is not allowed: expected a km post at least 1 cm above" in err
+        # A field the operation does not have (the old --valid-s) is refused by argparse.
+        with pytest.raises(SystemExit) as caught:
+            main([*tsr, "--valid-s", "60", "--start-km", "1", "--end-km", "2"])
+        assert caught.value.code == 2
+        capsys.readouterr()
         assert main(["ground", "status", "--admin-port", str(admin_port), "--json"]) == 0
         assert json.loads(capsys.readouterr().out)["result"]["trains"] == []  # nothing queued
         proc.send_signal(signal.SIGTERM)

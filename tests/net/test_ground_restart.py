@@ -1,16 +1,18 @@
 """Issue 11 item 4, "nothing lost": a ground killed with SIGKILL and restarted on the same
 SQLite store resumes every pending delivery, still knows every active TSR and can cancel
 it, and no train applies anything twice - on a clean link and under 50 % frame loss with
-reconnects.
+reconnects; and on the clean link again with the PostgreSQL store (a database of its own
+on the test server of tests/ground/postgres.py; skipped where PostgreSQL is not
+installed).
 
 The ground is a child process (so SIGKILL is a real one) operated through the
 ``railpilot ground tsr ...`` CLI and the admin port; the trains are onboard clients in this
 process, so what each applied is counted from its own events. On the clean link the child
-is ``railpilot ground serve --db FILE`` itself. Under loss it is the same server and store
-with shorter timers (:data:`GROUND_CHILD`): ``ground serve`` has no timer options, and its
-2 s resend interval at 50 % loss both ways (a quarter of the round trips get through)
-makes each delivery take about 8 s, a run over a minute. Every wait polls a condition with
-a deadline; nothing asserts on time.
+is ``railpilot ground serve --db FILE`` (or ``--db postgresql://...``) itself. Under loss it
+is the same server and store with shorter timers (:data:`GROUND_CHILD`): ``ground serve``
+has no timer options, and its 2 s resend interval at 50 % loss both ways (a quarter of the
+round trips get through) makes each delivery take about 8 s, a run over a minute. Every
+wait polls a condition with a deadline; nothing asserts on time.
 """
 
 from __future__ import annotations
@@ -29,7 +31,10 @@ from typing import Any
 
 import pytest
 
-from railpilot.ground.store import Store
+# tests/ground's PostgreSQL fixtures; "ground" is that package, importable as this one's
+# relative imports are (pytest puts tests/ on the path)
+from ground.postgres import postgres_dsn, postgres_server
+from railpilot.ground.store import Store, open_store, redact_dsn
 from railpilot.link import (
     DispatchCommand,
     Event,
@@ -45,6 +50,8 @@ from railpilot.net import FaultProxy, GroundServer, OnboardClient, ProxyOptions,
 from railpilot.net.admin import admin_request
 
 from .helpers import run, tsr, until
+
+__all__ = ["postgres_dsn", "postgres_server"]  # fixtures for the postgres case
 
 TRAINS = (3001, 3002, 3003)
 OFFLINE = 3003  # registers, leaves, and is offline while the TSR is set and the ground dies
@@ -70,9 +77,11 @@ WAIT_S = 25.0  # bound of one wait: generous, for a loaded machine and 50 % loss
 #: What ``ground serve --keys K --db D`` runs, with the timers given (argv[1]: JSON).
 GROUND_CHILD = """
 import asyncio, json, signal, sys
-from railpilot.ground.store import Store
+from railpilot.ground.store import open_store
 from railpilot.link import GroundConfig, LinkTimers, load_key_file
+from railpilot.line.loader import load_line
 from railpilot.net.admin import AdminServer
+from railpilot.net.dispatch_host import DispatchHost
 from railpilot.net.logfmt import setup_logging
 from railpilot.net.server import GroundServer
 
@@ -84,13 +93,16 @@ async def main():
     loop.add_signal_handler(signal.SIGTERM, stop.set)
     loop.call_later(120, stop.set)  # a safety net only: the test stops it
     config = GroundConfig(ground_id=1, timers=LinkTimers(**args["timers"]))
-    with Store(args["db"]) as store:
+    with open_store(args["db"]) as store:
         server = GroundServer(config, load_key_file(args["keys"]), port=args["port"], store=store)
+        host = DispatchHost(server, load_line("heavy-haul"))
         await server.start()
-        admin = AdminServer(server, port=args["admin_port"])
+        host.start()
+        admin = AdminServer(host, port=args["admin_port"])
         await admin.start()
         await stop.wait()
         await admin.stop()
+        host.stop()
         await server.stop()
 
 setup_logging()
@@ -115,7 +127,7 @@ class Ground:
 
     def __init__(
         self,
-        db: Path,
+        db: Path | str,
         keys: Path,
         port: int = 0,
         admin_port: int = 0,
@@ -294,12 +306,22 @@ class Trains:
             await asyncio.gather(*self.tasks.values(), return_exceptions=True)
 
 
-@pytest.mark.parametrize("drop", [0.0, 0.5], ids=["clean-link", "50-percent-loss"])
+@pytest.mark.parametrize(
+    ("drop", "backend"),
+    [
+        pytest.param(0.0, "sqlite", id="clean-link"),
+        pytest.param(0.5, "sqlite", id="50-percent-loss"),
+        pytest.param(0.0, "postgres", id="clean-link-postgres"),
+    ],
+)
 def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
-    tmp_path: Path, drop: float
+    tmp_path: Path, request: pytest.FixtureRequest, drop: float, backend: str
 ) -> None:
     keys = _key_file(tmp_path)
-    db = tmp_path / "ground.db"
+    db: Path | str = tmp_path / "ground.db"
+    if backend == "postgres":
+        db = request.getfixturevalue("postgres_dsn")
+    logs: list[str] = []
     # Under loss a train that reconnects turns RECONFIRMING again: the lossy run does not
     # wait for every train ACTIVE on the ground at one instant, only for every train to
     # have applied the TSR (and, at the end, for every train CANCELLED, a final state).
@@ -328,11 +350,12 @@ def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
 
             answer = await _operator(
                 ground,
-                *("tsr", "set", "--train", "all", "--session", str(SESSION)),
+                *("tsr", "set", "--session", str(SESSION)),
+                *(arg for train in TRAINS for arg in ("--train", str(train))),
                 *("--start-km", "5.0", "--end-km", "6.0", "--limit-kmh", "40"),
-                *("--valid-s", "600", "--reason", "track work"),
+                *("--valid-until-min", "10", "--reason", "track work"),
             )
-            outcomes = answer["result"]["trains"]
+            outcomes = answer["result"]["deliveries"]
             assert outcomes[str(OFFLINE)] == "queued until the train registers"
             assert set(outcomes) == {str(t) for t in TRAINS}
             assert not any(o.startswith("error") for o in outcomes.values()), outcomes
@@ -380,10 +403,11 @@ def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
 
             # The restarted ground can cancel it ('TSR session 21 was never set for this
             # train' was the bug).
-            answer = await _operator(
-                restarted, "tsr", "cancel", "--train", "all", "--session", str(SESSION)
-            )
-            assert not any(o.startswith("error") for o in answer["result"]["trains"].values())
+            # It goes to every train the TSR went to, as the restored ground knows.
+            answer = await _operator(restarted, "tsr", "cancel", "--session", str(SESSION))
+            cancels = answer["result"]["deliveries"]
+            assert set(cancels) == {str(t) for t in TRAINS}, cancels
+            assert not any(o.startswith("error") for o in cancels.values())
             await until(lambda: all(trains.cancelled[t][SESSION] for t in TRAINS), WAIT_S)
             await restarted.wait_for(
                 "TSR 21 CANCELLED on every train",
@@ -406,11 +430,17 @@ def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
                 assert await restarted.stop() == 0, "".join(restarted.lines)
             elif ground.proc is not None and ground.proc.returncode is None:
                 await ground.stop()
+            logs.extend([*ground.lines, *(restarted.lines if restarted else [])])
 
     run(scenario(), timeout_s=120.0)
+    if backend == "postgres":  # the URL carries the test server's password: never logged
+        assert isinstance(db, str)
+        password = db.split("@", 1)[0].rsplit(":", 1)[1]  # postgresql://user:password@...
+        assert password and password not in "".join(logs)
+        assert any(f"store={redact_dsn(db)}" in line for line in logs)
 
     # The audit log tells who set it, every acknowledgement, and the cancel.
-    with Store(db) as store:
+    with open_store(db) as store:
         log = store.audit_log()
         tsr = store.load().tsrs[SESSION]
     assert tsr.reason == "track work" and tsr.cancelled_at_s is not None

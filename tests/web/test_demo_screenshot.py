@@ -27,7 +27,14 @@ def test_the_demo_writes_a_screenshot_with_every_train(tmp_path: Path) -> None:
     assert figure == tmp_path / "dashboard.png"
     # a full page of a 1600 px wide dashboard, not an empty or error page
     assert figure.stat().st_size > 100_000
-    assert reproduction.payload["trains"] >= 20
+    # read from the live ground at the screenshot: at least 20 trains over TCP, and the
+    # form's TSR acknowledged by every train it went to
+    seen = reproduction.payload
+    assert seen["trains_registered"] >= 20
+    assert seen["tsr_concerned"] and seen["tsr_acknowledged"] == seen["tsr_concerned"]
+    # the two trains standing one behind the other: the follower is held behind the first
+    assert seen["targets"]["8002"]["reason"] == "TRAIN_AHEAD"
+    assert 141.0 < seen["targets"]["8002"]["km"] < 150.0 - dashboard.LENGTH_M / 1000.0
 
 
 def test_without_chromium_the_report_says_so_and_shows_nothing(

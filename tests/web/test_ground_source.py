@@ -15,6 +15,7 @@ from typing import Any
 from railpilot.line.loader import load_line
 from railpilot.link import GroundConfig, KeyStore, OnboardConfig, TravelDirection, TsrState
 from railpilot.net import GroundServer, OnboardClient, Trajectory
+from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource
 from railpilot.web.source import DashboardSource
 
@@ -51,9 +52,11 @@ async def _scenario() -> None:
         keys.add_key(train_id, 1, bytes((b + i) % 256 for b in range(32)))
     server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
     changes = _Changes(server)
-    source = ServerSource(server, load_line("heavy-haul"))
+    host = DispatchHost(server, load_line("heavy-haul"))
+    source = ServerSource(host)
     assert isinstance(source, DashboardSource)
     _, port = await server.start()
+    host.start()
     stop = asyncio.Event()
     tasks = []
     try:
@@ -135,8 +138,10 @@ def test_a_train_reaching_a_tsr_later_gets_it() -> None:
         keys.add_key(3001, 1, bytes(range(32)))
         server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
         changes = _Changes(server)
-        source = ServerSource(server, load_line("heavy-haul"))
+        host = DispatchHost(server, load_line("heavy-haul"))
+        source = ServerSource(host)
         _, port = await server.start()
+        host.start()
         stop = asyncio.Event()
         task = None
         try:

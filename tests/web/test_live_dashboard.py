@@ -23,6 +23,7 @@ from playwright.sync_api import Page, expect
 from railpilot.line.loader import load_line
 from railpilot.link import GroundConfig, KeyStore, LinkTimers, OnboardConfig, TravelDirection
 from railpilot.net import GroundServer, OnboardClient, Trajectory
+from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource, serve_dashboard
 
 from .conftest import CHROMIUM, START_DEADLINE_S, TOKEN
@@ -76,8 +77,10 @@ async def _ground(live: Live) -> None:
     for i, (train_id, *_) in enumerate(TRAINS):
         keys.add_key(train_id, 1, bytes((b + i) % 256 for b in range(32)))
     server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
-    source = ServerSource(server, load_line("heavy-haul"))
+    host = DispatchHost(server, load_line("heavy-haul"))
+    source = ServerSource(host)
     _, port = await server.start()
+    host.start()
     trains: list[asyncio.Task[None]] = []
     dashboard = serving = None
     try:

@@ -19,6 +19,7 @@ import re
 import secrets
 import signal
 import sys
+import time
 from collections.abc import Iterable
 from pathlib import Path
 from typing import Any, TextIO
@@ -125,27 +126,6 @@ def _add_admin(p: argparse.ArgumentParser) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
 
 
-def _add_trains(p: argparse.ArgumentParser) -> None:
-    p.add_argument(
-        "--train",
-        action="append",
-        required=True,
-        metavar="ID|all",
-        help="train id (repeatable), or 'all' = every train that has registered",
-    )
-
-
-def _train_list(values: list[str]) -> list[int] | str:
-    if values == ["all"]:
-        return "all"
-    out = []
-    for v in values:
-        if not v.isdigit() or not 1 <= int(v) <= 0xFFFF_FFFF:
-            raise LinkConfigError("--train", v, "'all' or a train id in [1, 4294967295]")
-        out.append(int(v))
-    return out
-
-
 def _run_async(main: Any) -> Any:
     """Run a coroutine; SIGINT/SIGTERM set the stop event it was given."""
     return asyncio.run(main)
@@ -213,9 +193,11 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--db",
         default=DEFAULT_DB,
-        metavar="PATH",
-        help="SQLite store of TSRs, deliveries and the audit log, kept across restarts "
-        f"(docs/ground-store.md); ':memory:' keeps nothing [{DEFAULT_DB}]",
+        metavar="PATH|URL",
+        help="store of TSRs, deliveries and the audit log, kept across restarts "
+        "(docs/ground-store.md): a SQLite file, ':memory:' (keeps nothing), or a PostgreSQL "
+        "URL postgresql://USER@HOST:PORT/DBNAME (password from ~/.pgpass or PGPASSWORD; one "
+        f"given in the URL is used but never shown) [{DEFAULT_DB}]",
     )
     p.add_argument(
         "--http-port",
@@ -238,73 +220,98 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--line",
         default=DEFAULT_LINE,
-        help=f"the line the dashboard shows: a shipped name or a line TOML file [{DEFAULT_LINE}]",
+        help="the line the ground dispatches (occupancy, target points, TSRs) and the "
+        f"dashboard shows: a shipped name or a line TOML file [{DEFAULT_LINE}]",
     )
     p.add_argument("--seconds", type=float, help="stop after this many seconds (default: run)")
     _add_log_level(p)
     p.set_defaults(func=_ground_serve)
 
-    tsr = sub.add_parser(
-        "tsr",
-        help="set or cancel a temporary speed restriction",
-        description="Set or cancel a TSR on a running server (delivered with resend until "
-        "acknowledged; the train extends it by its own length).",
-    )
-    tsr_sub = tsr.add_subparsers(dest="tsr_command", metavar="ACTION")
-    tsr_sub.required = True
-    p = tsr_sub.add_parser("set", help="set a TSR", description="Set a TSR on one or more trains.")
-    _add_trains(p)
-    p.add_argument("--session", type=int, required=True, help="TSR session number (1..2^32-1)")
-    p.add_argument("--start-km", type=float, required=True, help="start km post [km]")
-    p.add_argument("--end-km", type=float, required=True, help="end km post [km]")
-    p.add_argument("--limit-kmh", type=float, required=True, help="speed limit [km/h]")
-    p.add_argument("--valid-s", type=float, required=True, help="validity from now [s]")
-    p.add_argument("--reason", default="", help="why (kept in the ground's audit log)")
-    _add_admin(p)
-    p.set_defaults(func=_ground_admin, op="tsr_set")
-    p = tsr_sub.add_parser(
-        "cancel", help="cancel a TSR", description="Cancel a TSR session on one or more trains."
-    )
-    _add_trains(p)
-    p.add_argument("--session", type=int, required=True, help="TSR session number")
-    _add_admin(p)
-    p.set_defaults(func=_ground_admin, op="tsr_cancel")
+    # Each operation of the one schema (ground/operations.py) as a command; the fields are
+    # passed on as typed and validated once, by the ground, as the admin port and the
+    # dashboard's are.
+    groups: dict[str, Any] = {}
+    for words, op, description in OPERATION_COMMANDS:
+        parent = sub
+        if len(words) == 2:
+            if words[0] not in groups:
+                group = sub.add_parser(words[0], help=GROUP_HELP[words[0]])
+                groups[words[0]] = group.add_subparsers(
+                    dest=f"{words[0]}_command", metavar="ACTION"
+                )
+                groups[words[0]].required = True
+            parent = groups[words[0]]
+        p = parent.add_parser(words[-1], help=description, description=description)
+        _add_operation_fields(p, op)
+        _add_admin(p)
+        p.set_defaults(func=_ground_admin, op=op)
 
-    p = sub.add_parser(
+
+#: (command words, operation, description) for ``railpilot ground ...``.
+OPERATION_COMMANDS: tuple[tuple[tuple[str, ...], str, str], ...] = (
+    (
+        ("tsr", "set"),
+        "tsr_set",
+        "Set a TSR for the line: the ground delivers it to every "
+        "train it concerns, now or when they register, resent until acknowledged.",
+    ),
+    (("tsr", "cancel"), "tsr_cancel", "Cancel a TSR on every train it went to."),
+    (
+        ("restriction", "set"),
+        "restriction_set",
+        "Declare a section fault or a lost switch "
+        "indication: the signals protecting it show red and trains get target points.",
+    ),
+    (("restriction", "clear"), "restriction_clear", "Clear a declared restriction."),
+    (
+        ("target",),
         "target",
-        help="send a target point (red signal ahead)",
-        description="Send a target point; resent until acknowledged.",
-    )
-    _add_trains(p)
-    p.add_argument("--target-id", type=int, required=True, help="target id")
-    p.add_argument("--km", type=float, required=True, help="red signal km post [km]")
-    p.add_argument(
-        "--reason",
-        default="train-ahead",
-        choices=["train-ahead", "switch-indication-lost", "section-fault", "other"],
-        help="why [train-ahead]",
-    )
-    _add_admin(p)
-    p.set_defaults(func=_ground_admin, op="target")
-
-    p = sub.add_parser(
-        "dispatch",
-        help="send a dispatch command",
-        description="Send a dispatch command (text); resent until acknowledged.",
-    )
-    _add_trains(p)
-    p.add_argument("--command", type=int, required=True, help="command number (used once)")
-    p.add_argument("--text", required=True, help="command text (UTF-8, <= 1000 bytes)")
-    _add_admin(p)
-    p.set_defaults(func=_ground_admin, op="dispatch")
-
-    p = sub.add_parser(
+        "Send a target point by hand (the ground sends its own from "
+        "occupancy and restrictions); the train's newest target id is in force.",
+    ),
+    (("dispatch",), "dispatch", "Send a dispatch command (text); resent until acknowledged."),
+    (
+        ("status",),
         "status",
-        help="show trains, running info and deliveries",
-        description="Show what a running server knows.",
-    )
-    _add_admin(p)
-    p.set_defaults(func=_ground_admin, op="status", train=None)
+        "Show trains, running info, deliveries, TSRs, restrictions and target points.",
+    ),
+)
+GROUP_HELP = {
+    "tsr": "set or cancel a temporary speed restriction",
+    "restriction": "declare or clear a section fault / lost switch indication",
+}
+#: Help per field of the schema (ground/operations.py).
+FIELD_HELP = {
+    "start_km": "start km post [km]",
+    "end_km": "end km post [km]",
+    "limit_kmh": "speed limit [km/h]",
+    "valid_from_min": "valid from, minutes from now [0]",
+    "valid_until_min": "valid until, minutes from now",
+    "reason": "why (kept in the ground's audit log)",
+    "session": "TSR session number [the ground's next]",
+    "trains": "train id (repeatable), or 'all' where allowed",
+    "block": "block section id",
+    "track": "up, down or both [both]",
+    "id": "restriction id",
+    "km": "red signal km post [km]",
+    "text": "command text (UTF-8, <= 1000 bytes)",
+    "command": "command number [the ground's next]",
+}
+
+
+def _add_operation_fields(p: argparse.ArgumentParser, op: str) -> None:
+    from railpilot.ground.operations import FIELDS
+
+    required, optional = FIELDS[op]
+    for name in required + optional:
+        need = " (required)" if name in required else ""
+        if name == "trains":
+            p.add_argument(
+                "--train", action="append", dest="trains", metavar="ID", help=FIELD_HELP[name]
+            )
+        else:
+            flag = "--" + name.replace("_", "-")
+            p.add_argument(flag, dest=name, metavar="VALUE", help=FIELD_HELP[name] + need)
 
 
 def _register_onboard(subparsers: argparse._SubParsersAction) -> None:
@@ -401,12 +408,30 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
         "loadtest",
         help="N trains against one server on loopback",
         description="Start a ground server and N onboard endpoints (in a child process) on "
-        "loopback, 1 Hz running info with HMAC, one TSR broadcast; report latency and losses.",
+        "loopback, 1 Hz running info with HMAC, one TSR broadcast; report latency and losses. "
+        "The trains run along the heavy-haul line, both ways. With --dashboard the ground "
+        "also serves the dispatcher dashboard and the page stays open in Debian's headless "
+        "chromium (another process) for the whole run; the report then says how often the "
+        "page updated and what each snapshot cost the server (docs/scaling.md).",
     )
     p.add_argument("--trains", type=int, default=100, help="number of trains [100]")
     p.add_argument("--seconds", type=float, default=10.0, help="run time [10]")
     p.add_argument("--seed", type=int, default=1, help="seed [1]")
     p.add_argument("--client-processes", type=int, default=1, help="onboard processes [1]")
+    p.add_argument(
+        "--dispatch",
+        action="store_true",
+        help="run the ground's dispatch core too, as ground serve does (TSR manager, "
+        "occupancy, target points); --dashboard implies it",
+    )
+    p.add_argument(
+        "--dashboard",
+        action="store_true",
+        help="serve the dashboard too, open it in headless chromium (/usr/bin/chromium)",
+    )
+    p.add_argument(
+        "--screenshot", type=Path, metavar="PNG", help="with --dashboard: the page at the end"
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=_link_loadtest)
 
@@ -415,9 +440,10 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _ground_serve(args: argparse.Namespace) -> int:
-    from railpilot.ground.store import Store, StoreError
+    from railpilot.ground.store import StoreError, is_postgres_url, open_store, redact_dsn
     from railpilot.link import GroundConfig
     from railpilot.net.admin import AdminServer
+    from railpilot.net.dispatch_host import DispatchHost
     from railpilot.net.server import GroundServer
 
     keys = _keys(args.keys, args.no_auth)
@@ -428,14 +454,18 @@ def _ground_serve(args: argparse.Namespace) -> int:
         raise LinkConfigError("--admin-port", args.admin_port, "0..65535, or -1 = none")
     if not (math.isfinite(args.replay_window_s) and 0 <= args.replay_window_s <= 3600):
         raise LinkConfigError("--replay-window-s", args.replay_window_s, "0..3600 s")
+    line = _load_line(args.line)
     dashboard = _dashboard_options(args)
-    db = _db_path(args.db)
+    db = args.db if is_postgres_url(args.db) else _db_path(args.db)
     _log_level(args)
     try:
-        store = Store(db)
-    except StoreError as exc:  # not a database, another schema, no WAL ...
-        allowed = exc.allowed if exc.field == "path" else f"a railpilot ground store ({exc})"
-        raise ConfigError("--db", db, allowed) from None
+        store = open_store(db)
+    except StoreError as exc:  # not a database, another schema, no WAL, no server ...
+        allowed = (
+            exc.allowed if exc.field in ("path", "db") else f"a railpilot ground store ({exc})"
+        )
+        # redact_dsn: a PostgreSQL URL's password is never shown
+        raise ConfigError("--db", redact_dsn(db), allowed) from None
 
     async def main() -> None:
         stop = await _stop_on_signals()
@@ -445,23 +475,27 @@ def _ground_serve(args: argparse.Namespace) -> int:
             host=args.host,
             port=args.port,
             replay_window_s=args.replay_window_s,
+            # server.py annotates the SQLite Store; it uses only GroundStore's methods
             store=store,
         )
+        dispatch = DispatchHost(server, line)
         http = None
         if dashboard is not None:
             # Before the link listens: a busy port stops everything before trains connect.
-            http = await _start_dashboard(server, args, *dashboard)
+            http = await _start_dashboard(dispatch, args, *dashboard)
         try:
             await server.start()
+            dispatch.start()
             admin = None
             if args.admin_port != -1:
-                admin = AdminServer(server, port=args.admin_port)
+                admin = AdminServer(dispatch, port=args.admin_port)
                 await admin.start()
             if args.seconds is not None:
                 asyncio.get_running_loop().call_later(args.seconds, stop.set)
             await stop.wait()
             if admin is not None:
                 await admin.stop()
+            dispatch.stop()
             await server.stop()
         finally:
             if http is not None:
@@ -475,17 +509,24 @@ def _ground_serve(args: argparse.Namespace) -> int:
     return 0
 
 
-def _dashboard_options(args: argparse.Namespace) -> tuple[Any, str, bool] | None:
-    """Check the dashboard's options before anything starts: ``(line, token, generated)``,
-    or None without ``--http-port`` (then the other dashboard options are refused)."""
+def _load_line(name: str) -> Any:
     from railpilot.line.loader import load_line
+
+    try:
+        return load_line(name)
+    except ConfigError as exc:
+        raise ConfigError("--line", name, f"a line that loads ({exc})") from None
+
+
+def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
+    """Check the dashboard's options before anything starts: ``(token, generated)``, or
+    None without ``--http-port`` (then the other dashboard options are refused)."""
     from railpilot.web.app import MIN_TOKEN_CHARS
 
     if args.http_port is None:
         for option, value, default in (
             ("--http-host", args.http_host, DEFAULT_HTTP_HOST),
             ("--dispatcher-token", args.dispatcher_token, None),
-            ("--line", args.line, DEFAULT_LINE),
         ):
             if value != default:
                 shown = "<hidden>" if option == "--dispatcher-token" else value
@@ -510,21 +551,17 @@ def _dashboard_options(args: argparse.Namespace) -> tuple[Any, str, bool] | None
             "<hidden>",
             f"at least {MIN_TOKEN_CHARS} printable characters without spaces",
         )
-    try:
-        line = load_line(args.line)
-    except ConfigError as exc:
-        raise ConfigError("--line", args.line, f"a line that loads ({exc})") from None
-    return line, token, generated
+    return token, generated
 
 
 async def _start_dashboard(
-    server: Any, args: argparse.Namespace, line: Any, token: str, generated: bool
+    dispatch: Any, args: argparse.Namespace, token: str, generated: bool
 ) -> tuple[Any, asyncio.Task[None]]:
-    """Serve the dashboard over ``server`` in this loop; print its address (and the token
-    when it was made up here: it is printed once, never logged)."""
+    """Serve the dashboard over the ground's dispatch in this loop; print its address (and
+    the token when it was made up here: it is printed once, never logged)."""
     from railpilot.web.ground_source import ServerSource, serve_dashboard
 
-    source = ServerSource(server, line)
+    source = ServerSource(dispatch)
     try:
         http, task = await serve_dashboard(
             source, token=token, host=args.http_host, port=args.http_port
@@ -541,28 +578,19 @@ async def _start_dashboard(
 
 
 def _ground_admin(args: argparse.Namespace) -> int:
+    from railpilot.ground.operations import FIELDS
     from railpilot.net.admin import AdminError, admin_request
 
-    request: dict[str, Any] = {"op": args.op}
-    if args.train is not None:
-        request["trains"] = _train_list(args.train)
-        # who asked, for the ground's audit log: the operator's login on this host
-        request["actor"] = _login()
-    if args.op == "tsr_set":
-        request.update(
-            session=args.session,
-            start_km=args.start_km,
-            end_km=args.end_km,
-            limit_kmh=args.limit_kmh,
-            valid_s=args.valid_s,
-            reason=args.reason,
-        )
-    elif args.op == "tsr_cancel":
-        request.update(session=args.session)
-    elif args.op == "target":
-        request.update(target_id=args.target_id, km=args.km, reason=args.reason)
-    elif args.op == "dispatch":
-        request.update(command=args.command, text=args.text)
+    # who asked, for the ground's audit log: the operator's login on this host
+    request: dict[str, Any] = {"op": args.op, "actor": _login()}
+    required, optional = FIELDS[args.op]
+    for name in required + optional:
+        value = getattr(args, name, None)
+        if value is None:
+            continue
+        if name == "trains":
+            value = "all" if value == ["all"] else [int(v) if v.isdigit() else v for v in value]
+        request[name] = value
     try:
         response = asyncio.run(admin_request(request, port=args.admin_port))
     except (OSError, TimeoutError, AdminError) as exc:
@@ -570,17 +598,21 @@ def _ground_admin(args: argparse.Namespace) -> int:
         return 1
     if args.json:
         print_json(response)
-    elif not response.get("ok"):
-        pass
-    elif args.op == "status":
-        _print_status(response["result"])
-    else:
-        for train, outcome in response["result"]["trains"].items():
-            print(f"train {train}: {outcome}")
     if not response.get("ok"):
-        log(f"railpilot: error: {response.get('error')}")
+        errors = response.get("errors") or {"request": response.get("error")}
+        for field, message in errors.items():
+            log(f"railpilot: error: {field}: {message}")
         return 2
-    outcomes: dict[str, str] = {} if args.op == "status" else response["result"]["trains"]
+    result = response["result"]
+    if not args.json:
+        if args.op == "status":
+            _print_status(result)
+        else:
+            shown = {k: v for k, v in result.items() if k != "deliveries"}
+            print(", ".join(f"{k} {v}" for k, v in shown.items()))
+            for train, outcome in result.get("deliveries", {}).items():
+                print(f"train {train}: {outcome}")
+    outcomes: dict[str, str] = result.get("deliveries", {}) if args.op != "status" else {}
     refused = [t for t, r in outcomes.items() if r.startswith("error")]
     if refused:
         log(f"railpilot: error: refused for train(s) {', '.join(refused)}")
@@ -616,11 +648,29 @@ def _print_status(status: dict[str, Any]) -> None:
         print(f"  train {t['train_id']} {t['train_number'] or ''}: {link}, {state}, {where}")
         for session, s in t["tsrs"].items():
             print(f"    TSR {session}: {s}")
-    c = status["counters"]
-    print(
-        f"frames received {c['frames_received']}, accepted {c['frames_accepted']}, "
-        f"rejected {c['rejected']}, lost {c['frames_lost']}, resends {c['resends']}"
-    )
+        for target_id, s in t["target_points"].items():
+            print(f"    target point {target_id}: {s}")
+        for number, s in t["dispatch_commands"].items():
+            print(f"    dispatch command {number}: {s}")
+    dispatch = status.get("dispatch", {})
+    now = time.time()
+    for tsr in dispatch.get("tsrs", []):
+        left = (tsr["valid_until_s"] - now) / 60.0
+        until = f"{left:.0f} min left" if left > 0 else "expired"
+        print(
+            f"TSR {tsr['session']}: {tsr['state']}, km {tsr['start_km']:.3f}-{tsr['end_km']:.3f} "
+            f"{tsr['limit_kmh']:g} km/h, {until}, '{tsr['reason']}' by {tsr['set_by']}, "
+            f"to train(s) {', '.join(map(str, tsr['trains'])) or 'none yet'}"
+        )
+    for r in dispatch.get("restrictions", []):
+        where = r["block"] or f"km {r['start_km']:.3f}-{r['end_km']:.3f} ({r['track']})"
+        print(f"restriction {r['id']}: {r['reason']} on {where}")
+    for train, target in dispatch.get("targets", {}).items():
+        if target["km"] is not None:
+            print(
+                f"target point {target['target_id']} for train {train}: km {target['km']:.3f} "
+                f"signal {target['signal']} ({target['reason']})"
+            )
 
 
 # --- onboard ----------------------------------------------------------------------------------
@@ -984,15 +1034,28 @@ def _link_proxy(args: argparse.Namespace) -> int:
 
 
 def _link_loadtest(args: argparse.Namespace) -> int:
-    from railpilot.net.loadtest import LoadtestOptions, run_loadtest
+    from railpilot.net.loadtest import LoadtestOptions, check_dashboard, run_loadtest
 
+    if args.screenshot is not None and not args.dashboard:
+        raise ConfigError("--screenshot", str(args.screenshot), "to be given with --dashboard")
     options = LoadtestOptions(
         trains=args.trains,
         seconds=args.seconds,
         seed=args.seed,
         client_processes=args.client_processes,
+        dispatch=args.dispatch,
+        dashboard=args.dashboard,
+        screenshot=None if args.screenshot is None else str(args.screenshot),
     )
-    log(f"load test: {options.trains} trains for {options.seconds} s on 127.0.0.1 ...")
+    try:
+        check_dashboard(options)
+    except ConfigError as exc:
+        raise ConfigError("--dashboard", "on", exc.allowed) from None
+    log(
+        f"load test: {options.trains} trains for {options.seconds} s on 127.0.0.1"
+        + (" with the dashboard open in chromium" if options.dashboard else "")
+        + " ..."
+    )
     report = run_loadtest(options)
     if args.json:
         print_json(report)

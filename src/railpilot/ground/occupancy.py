@@ -239,6 +239,7 @@ class Occupancy:
     now_s: float
     trains: tuple[TrainOccupancy, ...]
     _by_block: Mapping[str, tuple[int, ...]] = field(init=False, repr=False, compare=False)
+    _by_id: Mapping[int, TrainOccupancy] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not is_finite_number(self.now_s):
@@ -259,6 +260,7 @@ class Occupancy:
             for block_id in train.block_ids:
                 by_block.setdefault(block_id, []).append(train.train_id)
         object.__setattr__(self, "trains", trains)
+        object.__setattr__(self, "_by_id", {t.train_id: t for t in trains})
         object.__setattr__(
             self,
             "_by_block",
@@ -277,9 +279,9 @@ class Occupancy:
 
     def train(self, train_id: int) -> TrainOccupancy:
         """The occupancy of ``train_id``."""
-        for train in self.trains:
-            if train.train_id == train_id:
-                return train
+        train = self._by_id.get(train_id)
+        if train is not None:
+            return train
         raise ConfigError("train_id", train_id, f"one of the trains placed: {self.train_ids}")
 
     def occupants(self, block_id: str) -> tuple[int, ...]:
@@ -318,9 +320,7 @@ def occupied_blocks(
     tail_m = min(max(head_m - sign * length_m, line.start_m), line.end_m)
     low, high = min(head_m, tail_m), max(head_m, tail_m)
     # Closed spans on both sides: a touch at a boundary counts (module docstring).
-    return tuple(
-        s for s in line.block_sections_for(direction) if s.start_m <= high and s.end_m >= low
-    )
+    return line.block_sections_between(low, high, direction)
 
 
 def compute_occupancy(
@@ -359,7 +359,8 @@ def compute_occupancy(
         ids = [s.id for s in sections]
         if not known:
             order = line.block_sections_for(report.direction)
-            head_index = order.index(sections[-1])
+            head_index = line.block_index(sections[-1].id, report.direction)
+            assert head_index is not None  # the section came from this direction
             extra = order[head_index + 1 : head_index + 1 + cfg.stale_blocks_ahead]
             ids.extend(s.id for s in extra)
         sign = direction_sign(report.direction)

@@ -213,6 +213,20 @@ class TrainRegistry:
     def train_ids(self) -> tuple[int, ...]:
         return tuple(sorted(self._trains))
 
+    def reports(self) -> list[tuple[int, RunningInfo, float, float]]:
+        """``(train id, last running info, train length [m], when it came [s])`` of every
+        registered train that has reported: what the occupancy needs, without building a
+        :class:`TrainState` per train."""
+        return [
+            (t.train_id, t.info, t.request.train_length_m, t.info_at_s)
+            for t in self._trains.values()
+            if t.registered and t.info is not None and t.request is not None
+        ]
+
+    def knows(self, train_id: int) -> bool:
+        """Whether the registry has heard of ``train_id``."""
+        return train_id in self._trains
+
     def state(self, train_id: int, now_s: float) -> TrainState:
         """Train ``train_id`` at ``now_s`` [s]; an unknown train is an error naming it."""
         now = _time(now_s)

@@ -1,33 +1,44 @@
 """What the ground must not lose: TSRs, deliveries and their state, an audit log (issue 11).
 
-One :class:`Store` per ground server, backed by SQLite (the embedded default: a file, or
-``":memory:"`` for tests). The server writes to it *before* a frame leaves (DESIGN habit
-14, persistence before effect) and rebuilds its train records from :meth:`Store.load` when
-it starts, so after ``kill -9`` every pending delivery is resent and every active TSR can
-still be cancelled. docs/ground-store.md has the schema, the write points and how to
-inspect a database with the ``sqlite3`` shell.
+One store per ground server. :class:`Store` is the embedded default, SQLite (a file, or
+``":memory:"`` for tests); :class:`~railpilot.ground.store_postgres.PostgresStore` is the
+same store on a PostgreSQL server, for a dispatch centre. :func:`open_store` picks one
+from ``ground serve --db``. The server writes to it *before* a frame leaves (DESIGN habit
+14, persistence before effect) and rebuilds its train records from
+:meth:`GroundStore.load` when it starts, so after ``kill -9`` every pending delivery is
+resent and every active TSR can still be cancelled. docs/ground-store.md has the schema,
+the write points and how to inspect a database.
 
 The interface is small and speaks the link's own types (:class:`~railpilot.link.TsrSet`,
-:class:`~railpilot.link.TsrState` ...), never SQL, so a PostgreSQL backend can sit behind
-the same methods:
+:class:`~railpilot.link.TsrState` ...), never SQL:
 
-* :meth:`Store.record_tsr` - a line-level TSR as the dispatcher set it (once per session);
-* :meth:`Store.record_tsr_state` - one train's delivery state of a TSR session;
-* :meth:`Store.record_tsr_cancel` - the dispatcher asked to cancel a session;
-* :meth:`Store.record_delivery` / :meth:`Store.record_delivery_state` - target points and
-  dispatch commands per train;
-* :meth:`Store.record_registration` - a train's last registration (so ``all`` still names
-  it after a restart);
-* :meth:`Store.audit` - an append-only log entry (time, actor, action, train, detail);
-* :meth:`Store.transaction` - several of the above atomically (each one alone is atomic);
-* :meth:`Store.load` - everything needed to rebuild the server's train records.
+* :meth:`GroundStore.record_tsr` - a line-level TSR as the dispatcher set it (once per
+  session);
+* :meth:`GroundStore.record_tsr_state` - one train's delivery state of a TSR session;
+* :meth:`GroundStore.record_tsr_cancel` - the dispatcher asked to cancel a session;
+* :meth:`GroundStore.record_delivery` / :meth:`GroundStore.record_delivery_state` - target
+  points and dispatch commands per train;
+* :meth:`GroundStore.record_registration` - a train's last registration (so ``all`` still
+  names it after a restart);
+* :meth:`GroundStore.audit` - an append-only log entry (time, actor, action, train, detail);
+* :meth:`GroundStore.transaction` - several of the above atomically (each one alone is
+  atomic);
+* :meth:`GroundStore.load` - everything needed to rebuild the server's train records.
 
-Durability: WAL journal with ``synchronous=FULL``. In WAL mode ``NORMAL`` already survives
-``kill -9`` of the process (the WAL lives in the OS page cache), but after a power loss
-it may roll back the last commits; the ground may by then have sent the frame those
-commits announced, and a train enforcing a TSR the ground no longer knows cannot be
-cancelled. ``FULL`` makes every commit durable before the call returns, at one fsync per
-transaction. ``synchronous="NORMAL"`` is accepted for benchmarks and tests.
+All of that - validation, SQL, transactions, the snapshot - lives once, in
+:class:`GroundStore`. A backend only supplies what must differ: the connection, how a
+statement is run (placeholders), column types in the schema, how to begin a transaction,
+the names already in the database, and its durability settings. The shared SQL is
+written so that it is safe with several processes on one database (PostgreSQL): every
+check-then-write is one statement (``ON CONFLICT``, ``UPDATE ... WHERE``) that the
+database evaluates against the latest committed row.
+
+SQLite durability: WAL journal with ``synchronous=FULL``. In WAL mode ``NORMAL`` already
+survives ``kill -9`` of the process (the WAL lives in the OS page cache), but after a
+power loss it may roll back the last commits; the ground may by then have sent the frame
+those commits announced, and a train enforcing a TSR the ground no longer knows cannot
+be cancelled. ``FULL`` makes every commit durable before the call returns, at one fsync
+per transaction. ``synchronous="NORMAL"`` is accepted for benchmarks and tests.
 
 Every time is passed in (``at_s``, seconds since the epoch on the ground clock): the store
 reads no clock.
@@ -37,13 +48,15 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import sqlite3
-from collections.abc import Iterator, Mapping
-from contextlib import contextmanager
+from abc import ABC, abstractmethod
+from collections.abc import Iterator, Mapping, Sequence
+from contextlib import AbstractContextManager, contextmanager, suppress
 from dataclasses import dataclass
 from enum import Enum
 from pathlib import Path
-from typing import Any, Final, TypeVar
+from typing import Any, ClassVar, Final, Protocol, Self, TypeVar
 
 from railpilot.errors import RailpilotError
 from railpilot.link import (
@@ -60,6 +73,9 @@ from railpilot.units import mps_to_kmh
 #: ``railpilot ground serve`` keeps its store here unless told otherwise (``--db``).
 DEFAULT_PATH: Final = "ground.db"
 MEMORY: Final = ":memory:"
+#: ``--db`` values that name a PostgreSQL server (libpq's URL schemes); anything else is
+#: a SQLite file.
+POSTGRES_SCHEMES: Final = ("postgresql://", "postgres://")
 #: The schema this code writes; a database with a newer one is refused, an older one
 #: migrated (there is none older yet).
 SCHEMA_VERSION: Final = 1
@@ -72,65 +88,68 @@ _MAX_ACTION = 64
 
 E = TypeVar("E", bound=Enum)
 
+# One schema for every backend; {int}, {real} and {seq_key} are the column types that must
+# differ (ids up to 2^32-1 need PostgreSQL's BIGINT, its REAL is a float4, and the audit
+# sequence is AUTOINCREMENT in SQLite, an identity column in PostgreSQL).
 _SCHEMA = """
 CREATE TABLE schema_version (
-    version INTEGER NOT NULL
+    version {int} NOT NULL
 );
 -- A TSR as the dispatcher set it: one row per session number, line-wide.
 CREATE TABLE tsrs (
-    session        INTEGER PRIMARY KEY,
-    start_m        REAL NOT NULL,
-    end_m          REAL NOT NULL,
-    limit_mps      REAL NOT NULL,
-    valid_from_s   REAL NOT NULL,
-    valid_until_s  REAL NOT NULL,
+    session        {int} PRIMARY KEY,
+    start_m        {real} NOT NULL,
+    end_m          {real} NOT NULL,
+    limit_mps      {real} NOT NULL,
+    valid_from_s   {real} NOT NULL,
+    valid_until_s  {real} NOT NULL,
     reason         TEXT NOT NULL,
     actor          TEXT NOT NULL,
-    set_at_s       REAL NOT NULL,
-    cancelled_at_s REAL,
+    set_at_s       {real} NOT NULL,
+    cancelled_at_s {real},
     cancelled_by   TEXT
 );
 -- Its delivery to one train (docs/protocol.md 8.3: TsrState names).
 CREATE TABLE tsr_deliveries (
-    train_id     INTEGER NOT NULL,
-    session      INTEGER NOT NULL REFERENCES tsrs (session),
+    train_id     {int} NOT NULL,
+    session      {int} NOT NULL REFERENCES tsrs (session),
     state        TEXT NOT NULL,
-    updated_at_s REAL NOT NULL,
+    updated_at_s {real} NOT NULL,
     PRIMARY KEY (train_id, session)
 );
 CREATE TABLE target_points (
-    train_id     INTEGER NOT NULL,
-    target_id    INTEGER NOT NULL,
-    position_m   REAL NOT NULL,
+    train_id     {int} NOT NULL,
+    target_id    {int} NOT NULL,
+    position_m   {real} NOT NULL,
     reason       TEXT NOT NULL,
     state        TEXT NOT NULL,
-    updated_at_s REAL NOT NULL,
+    updated_at_s {real} NOT NULL,
     PRIMARY KEY (train_id, target_id)
 );
 CREATE TABLE dispatch_commands (
-    train_id       INTEGER NOT NULL,
-    command_number INTEGER NOT NULL,
+    train_id       {int} NOT NULL,
+    command_number {int} NOT NULL,
     text           TEXT NOT NULL,
     state          TEXT NOT NULL,
-    updated_at_s   REAL NOT NULL,
+    updated_at_s   {real} NOT NULL,
     PRIMARY KEY (train_id, command_number)
 );
 -- The last accepted registration of each train.
 CREATE TABLE trains (
-    train_id        INTEGER PRIMARY KEY,
+    train_id        {int} PRIMARY KEY,
     train_number    TEXT NOT NULL,
     loco_number     TEXT NOT NULL,
-    driver_id       INTEGER NOT NULL,
-    train_length_m  REAL NOT NULL,
-    registered_at_s REAL NOT NULL
+    driver_id       {int} NOT NULL,
+    train_length_m  {real} NOT NULL,
+    registered_at_s {real} NOT NULL
 );
 -- Append-only: nothing ever updates or deletes a row.
 CREATE TABLE audit (
-    seq      INTEGER PRIMARY KEY AUTOINCREMENT,
-    at_s     REAL NOT NULL,
+    seq      {seq_key},
+    at_s     {real} NOT NULL,
     actor    TEXT NOT NULL,
     action   TEXT NOT NULL,
-    train_id INTEGER,
+    train_id {int},
     detail   TEXT NOT NULL
 );
 CREATE INDEX audit_by_train ON audit (train_id, seq);
@@ -189,7 +208,7 @@ class StoredTrain:
 
 @dataclass(frozen=True, slots=True)
 class Snapshot:
-    """Everything :meth:`Store.load` found, final states included.
+    """Everything :meth:`GroundStore.load` found, final states included.
 
     Final states (a TSR cancelled, refused or expired; a delivery acknowledged) are kept:
     the core never resends them, and with them a restarted ground answers a repeated
@@ -210,81 +229,84 @@ class AuditEntry:
     detail: Mapping[str, Any]
 
 
-# --- the store -------------------------------------------------------------------------------
+# --- the store: everything both backends share -------------------------------------------
 
 
-class Store:
-    """SQLite store of the ground (WAL, ``synchronous=FULL`` by default).
+class Cursor(Protocol):
+    """What the shared code needs of a backend's cursor (sqlite3's and psycopg's have it)."""
 
-    Parameters
-    ----------
-    path
-        Database file (created with its schema if missing), or ``":memory:"``.
-    synchronous
-        ``"FULL"`` (default: every commit survives a power loss) or ``"NORMAL"`` (survives
-        a crash of the process only); see the module docstring.
+    @property
+    def rowcount(self) -> int: ...
 
-    Single-threaded, like the server's event loop that owns it. Each ``record_*`` /
-    :meth:`audit` call is one transaction unless made inside :meth:`transaction`.
+    def fetchall(self) -> Sequence[Any]: ...
+
+
+class GroundStore(ABC):
+    """The ground store: the interface the server uses, and all the logic behind it.
+
+    A backend (:class:`Store` for SQLite, ``PostgresStore``) opens the connection, sets
+    the class attributes below, implements the abstract methods, and calls
+    :meth:`_migrate` once connected. Single-threaded, like the server's event loop that
+    owns it. Each ``record_*`` / :meth:`audit` call is one transaction unless made inside
+    :meth:`transaction`.
     """
 
-    def __init__(self, path: str | Path = DEFAULT_PATH, *, synchronous: str = "FULL") -> None:
-        if synchronous not in SYNCHRONOUS:
-            raise _refuse("synchronous", synchronous, f"one of {', '.join(SYNCHRONOUS)}")
-        text = str(path)
-        if text != MEMORY:
-            file = Path(text)
-            if file.is_dir():
-                raise _refuse("path", text, "a database file, not a directory")
-            if not file.parent.is_dir():
-                raise _refuse("path", text, "a file in an existing directory")
-        self.path = text
-        self._depth = 0
-        try:
-            # isolation_level=None: no implicit transactions; ours are explicit (BEGIN).
-            self._db = sqlite3.connect(text, isolation_level=None)
-        except sqlite3.Error as exc:
-            raise _refuse("path", text, f"a SQLite database that can be opened ({exc})") from None
-        try:
-            self._configure(synchronous)
-            self._migrate()
-        except BaseException:
-            self._db.close()
-            raise
+    #: The constructor argument a refusal names ("path" for SQLite, "db" for PostgreSQL).
+    _FIELD: ClassVar[str]
+    #: The statement that starts a writing transaction, and a reading one (load()).
+    _BEGIN_WRITE: ClassVar[str]
+    _BEGIN_READ: ClassVar[str]
+    #: The column types the schema template leaves open: int, real, seq_key.
+    _COLUMN_TYPES: ClassVar[Mapping[str, str]]
+    #: The backend's errors: each becomes a StoreError naming the database.
+    _DB_ERRORS: ClassVar[tuple[type[Exception], ...]]
 
-    def _configure(self, synchronous: str) -> None:
-        try:
-            mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
-            self._db.execute(f"PRAGMA synchronous={synchronous}")
-            self._db.execute("PRAGMA foreign_keys=ON")
-            # a reader (the sqlite3 shell) may hold a lock for a moment
-            self._db.execute("PRAGMA busy_timeout=5000")
-        except sqlite3.Error as exc:
-            raise _refuse("path", self.path, f"a SQLite database ({exc})") from None
-        if self.path != MEMORY and str(mode).lower() != "wal":
-            raise _refuse("path", self.path, f"a file system that supports WAL (got {mode})")
+    def __init__(self, path: str) -> None:
+        #: Where the store is, as status and logs show it (never a password).
+        self.path = path
+        self._depth = 0
+
+    # --- what a backend supplies ---------------------------------------------------------
+
+    @abstractmethod
+    def _execute(self, sql: str, params: Sequence[Any] = ()) -> Cursor:
+        """Run one statement written with ``?`` placeholders; raises the backend's errors."""
+
+    @abstractmethod
+    def _object_names(self) -> set[str]:
+        """Names of the tables (and other objects) already in the store's database."""
+
+    @abstractmethod
+    def close(self) -> None: ...
+
+    def _begin(self, sql: str) -> None:
+        """Start an outermost transaction (PostgreSQL reconnects here if it must)."""
+        self._execute(sql)
+
+    def _lock_schema(self) -> None:  # noqa: B027 - a hook; doing nothing is the default
+        """Keep other processes from creating the schema at the same time (inside
+        :meth:`_migrate`'s transaction); SQLite's ``BEGIN IMMEDIATE`` already does."""
+
+    # --- schema ----------------------------------------------------------------------------
 
     def _migrate(self) -> None:
         with self.transaction():
-            found = self._db.execute(
-                "SELECT name FROM sqlite_master WHERE type = 'table' AND name = 'schema_version'"
-            ).fetchone()
-            if found is None:
-                if self._db.execute("SELECT count(*) FROM sqlite_master").fetchone()[0]:
+            self._lock_schema()
+            names = self._object_names()
+            if "schema_version" not in names:
+                if names:
                     raise _refuse(
-                        "path",
+                        self._FIELD,
                         self.path,
                         "a railpilot ground store (this database has other tables)",
                     )
-                # one statement at a time: executescript() would COMMIT our BEGIN
-                for statement in _SCHEMA.split(";"):
+                # one statement at a time: sqlite3's executescript() would COMMIT our BEGIN
+                for statement in _SCHEMA.format(**self._COLUMN_TYPES).split(";"):
                     if statement.strip():
-                        self._db.execute(statement)
-                self._db.execute(
-                    "INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,)
-                )
+                        self._write(statement)
+                self._write("INSERT INTO schema_version (version) VALUES (?)", (SCHEMA_VERSION,))
                 return
-            (version,) = self._db.execute("SELECT max(version) FROM schema_version").fetchone()
+            ((version,),) = self._read("SELECT max(version) FROM schema_version")
             if version is None or version > SCHEMA_VERSION:
                 raise _refuse(
                     "schema_version",
@@ -295,10 +317,7 @@ class Store:
 
     # --- lifecycle ---------------------------------------------------------------------------
 
-    def close(self) -> None:
-        self._db.close()
-
-    def __enter__(self) -> Store:
+    def __enter__(self) -> Self:
         return self
 
     def __exit__(self, *exc: object) -> None:
@@ -306,54 +325,60 @@ class Store:
 
     @property
     def schema_version(self) -> int:
-        return int(self._db.execute("SELECT max(version) FROM schema_version").fetchone()[0])
+        return int(self._read("SELECT max(version) FROM schema_version")[0][0])
 
-    @property
-    def journal_mode(self) -> str:
-        return str(self._db.execute("PRAGMA journal_mode").fetchone()[0]).lower()
-
-    @property
-    def synchronous(self) -> str:
-        # PRAGMA synchronous answers 0 OFF, 1 NORMAL, 2 FULL, 3 EXTRA
-        level = int(self._db.execute("PRAGMA synchronous").fetchone()[0])
-        return ("OFF", "NORMAL", "FULL", "EXTRA")[level]
-
-    @contextmanager
-    def transaction(self) -> Iterator[None]:
+    def transaction(self) -> AbstractContextManager[None]:
         """Everything inside commits together or not at all.
 
         Nested use is a savepoint: an exception leaving the inner block undoes only the
         inner block's writes (the outer block decides about the rest).
         """
+        return self._transaction(self._BEGIN_WRITE)
+
+    @contextmanager
+    def _transaction(self, begin: str) -> Iterator[None]:
         depth = self._depth
         try:
-            self._db.execute("BEGIN IMMEDIATE" if depth == 0 else f"SAVEPOINT s{depth}")
-        except sqlite3.Error as exc:
+            if depth == 0:
+                self._begin(begin)
+            else:
+                self._execute(f"SAVEPOINT s{depth}")
+        except self._DB_ERRORS as exc:
             raise StoreError(f"cannot start a transaction on {self.path} ({exc})") from None
         self._depth = depth + 1
         try:
             yield
         except BaseException:
             self._depth = depth
-            if depth == 0:
-                self._db.execute("ROLLBACK")
-            else:
-                self._db.execute(f"ROLLBACK TO s{depth}")
-                self._db.execute(f"RELEASE s{depth}")
+            # A lost connection cannot roll back either; the exception that got us here
+            # is the one to report (the database discards the open transaction itself).
+            with suppress(*self._DB_ERRORS):
+                if depth == 0:
+                    self._execute("ROLLBACK")
+                else:
+                    self._execute(f"ROLLBACK TO s{depth}")
+                    self._execute(f"RELEASE s{depth}")
             raise
         self._depth = depth
         try:
-            self._db.execute("COMMIT" if depth == 0 else f"RELEASE s{depth}")
-        except sqlite3.Error as exc:
-            if depth == 0 and self._db.in_transaction:
-                self._db.execute("ROLLBACK")
+            self._execute("COMMIT" if depth == 0 else f"RELEASE s{depth}")
+        except self._DB_ERRORS as exc:
+            if depth == 0:  # SQLite keeps a transaction whose COMMIT failed open
+                with suppress(*self._DB_ERRORS):
+                    self._execute("ROLLBACK")
             raise StoreError(f"cannot commit to {self.path} ({exc})") from None
 
-    def _write(self, sql: str, params: tuple[Any, ...]) -> sqlite3.Cursor:
+    def _write(self, sql: str, params: Sequence[Any] = ()) -> Cursor:
         try:
-            return self._db.execute(sql, params)
-        except sqlite3.Error as exc:
+            return self._execute(sql, params)
+        except self._DB_ERRORS as exc:
             raise StoreError(f"cannot write to {self.path} ({exc})") from None
+
+    def _read(self, sql: str, params: Sequence[Any] = ()) -> Sequence[Any]:
+        try:
+            return self._execute(sql, params).fetchall()
+        except self._DB_ERRORS as exc:
+            raise StoreError(f"cannot read {self.path} ({exc})") from None
 
     # --- writes ------------------------------------------------------------------------------
 
@@ -369,19 +394,12 @@ class Store:
         _check_text("reason", reason, _MAX_REASON, empty=True)
         _check_time("at_s", at_s)
         with self.transaction():
-            existing = self._tsr(tsr.session)
-            if existing is not None:
-                held, by = existing
-                if held != tsr:
-                    raise _refuse(
-                        "tsr.session",
-                        tsr.session,
-                        f"a session not used yet (it holds {_describe(held)}, set by {by})",
-                    )
-                return
-            self._write(
+            # Insert first, compare after: an INSERT of a session another process is
+            # inserting waits for it, and the SELECT after it sees the row that won.
+            inserted = self._write(
                 "INSERT INTO tsrs (session, start_m, end_m, limit_mps, valid_from_s, "
-                "valid_until_s, reason, actor, set_at_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                "valid_until_s, reason, actor, set_at_s) VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?) "
+                "ON CONFLICT (session) DO NOTHING",
                 (
                     tsr.session,
                     tsr.start_m,
@@ -393,7 +411,19 @@ class Store:
                     actor,
                     at_s,
                 ),
-            )
+            ).rowcount
+            if inserted:
+                return
+            existing = self._tsr(tsr.session)
+            if existing is None:  # only a hand-edited database gets here
+                raise StoreError(f"cannot write to {self.path} (session {tsr.session} vanished)")
+            held, by = existing
+            if held != tsr:
+                raise _refuse(
+                    "tsr.session",
+                    tsr.session,
+                    f"a session not used yet (it holds {_describe(held)}, set by {by})",
+                )
 
     def record_tsr_cancel(self, session: int, *, actor: str, at_s: float) -> None:
         """Mark a line-level TSR cancelled by ``actor`` (the first cancel's time stays)."""
@@ -442,45 +472,42 @@ class Store:
         _check_type("state", state, DeliveryState, f"a DeliveryState ({_names(DeliveryState)})")
         _check_time("at_s", at_s)
         if isinstance(message, TargetPoint):
-            self._write_upsert(
-                "INSERT INTO target_points (train_id, target_id, position_m, reason, state, "
-                "updated_at_s) VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (train_id, target_id) DO "
-                "UPDATE SET position_m = excluded.position_m, reason = excluded.reason, "
-                "state = excluded.state, updated_at_s = excluded.updated_at_s",
-                (
-                    train_id,
-                    message.target_id,
-                    message.position_m,
-                    message.reason.name,
-                    state.name,
-                    at_s,
-                ),
-            )
+            with self.transaction():
+                self._write(
+                    "INSERT INTO target_points (train_id, target_id, position_m, reason, "
+                    "state, updated_at_s) VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (train_id, "
+                    "target_id) DO UPDATE SET position_m = excluded.position_m, reason = "
+                    "excluded.reason, state = excluded.state, updated_at_s = "
+                    "excluded.updated_at_s",
+                    (
+                        train_id,
+                        message.target_id,
+                        message.position_m,
+                        message.reason.name,
+                        state.name,
+                        at_s,
+                    ),
+                )
         elif isinstance(message, DispatchCommand):
             with self.transaction():
-                row = self._db.execute(
-                    "SELECT text FROM dispatch_commands WHERE train_id = ? AND command_number = ?",
-                    (train_id, message.command_number),
-                ).fetchone()
-                if row is not None and row[0] != message.text:
+                # The text check is the upsert's own WHERE: no row written means the
+                # number holds another text (also when another process just wrote it).
+                written = self._write(
+                    "INSERT INTO dispatch_commands (train_id, command_number, text, state, "
+                    "updated_at_s) VALUES (?, ?, ?, ?, ?) ON CONFLICT (train_id, "
+                    "command_number) DO UPDATE SET state = excluded.state, "
+                    "updated_at_s = excluded.updated_at_s "
+                    "WHERE dispatch_commands.text = excluded.text",
+                    (train_id, message.command_number, message.text, state.name, at_s),
+                ).rowcount
+                if not written:
                     raise _refuse(
                         "message.command_number",
                         message.command_number,
                         f"a command number not used yet for train {train_id}",
                     )
-                self._write(
-                    "INSERT INTO dispatch_commands (train_id, command_number, text, state, "
-                    "updated_at_s) VALUES (?, ?, ?, ?, ?) ON CONFLICT (train_id, "
-                    "command_number) DO UPDATE SET state = excluded.state, "
-                    "updated_at_s = excluded.updated_at_s",
-                    (train_id, message.command_number, message.text, state.name, at_s),
-                )
         else:
             raise _refuse("message", message, "a TargetPoint or a DispatchCommand")
-
-    def _write_upsert(self, sql: str, params: tuple[Any, ...]) -> None:
-        with self.transaction():
-            self._write(sql, params)
 
     def record_delivery_state(
         self,
@@ -519,21 +546,22 @@ class Store:
         _check_id("train_id", train_id)
         _check_type("request", request, RegisterRequest, "a RegisterRequest")
         _check_time("at_s", at_s)
-        self._write_upsert(
-            "INSERT INTO trains (train_id, train_number, loco_number, driver_id, "
-            "train_length_m, registered_at_s) VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT (train_id) "
-            "DO UPDATE SET train_number = excluded.train_number, loco_number = "
-            "excluded.loco_number, driver_id = excluded.driver_id, train_length_m = "
-            "excluded.train_length_m, registered_at_s = excluded.registered_at_s",
-            (
-                train_id,
-                request.train_number,
-                request.loco_number,
-                request.driver_id,
-                request.train_length_m,
-                at_s,
-            ),
-        )
+        with self.transaction():
+            self._write(
+                "INSERT INTO trains (train_id, train_number, loco_number, driver_id, "
+                "train_length_m, registered_at_s) VALUES (?, ?, ?, ?, ?, ?) ON CONFLICT "
+                "(train_id) DO UPDATE SET train_number = excluded.train_number, loco_number "
+                "= excluded.loco_number, driver_id = excluded.driver_id, train_length_m = "
+                "excluded.train_length_m, registered_at_s = excluded.registered_at_s",
+                (
+                    train_id,
+                    request.train_number,
+                    request.loco_number,
+                    request.driver_id,
+                    request.train_length_m,
+                    at_s,
+                ),
+            )
 
     def audit(
         self,
@@ -555,16 +583,26 @@ class Store:
         except (TypeError, ValueError) as exc:
             raise _refuse("detail", detail, f"a JSON object of finite values ({exc})") from None
         with self.transaction():
-            cursor = self._write(
-                "INSERT INTO audit (at_s, actor, action, train_id, detail) VALUES (?, ?, ?, ?, ?)",
+            # fetchall(): sqlite3 finishes (resets) the statement only once it is read out
+            ((seq,),) = self._write(
+                "INSERT INTO audit (at_s, actor, action, train_id, detail) "
+                "VALUES (?, ?, ?, ?, ?) RETURNING seq",
                 (at_s, actor, action, train_id, text),
-            )
-        return int(cursor.lastrowid or 0)
+            ).fetchall()
+        return int(seq)
 
     # --- reads -------------------------------------------------------------------------------
 
     def load(self) -> Snapshot:
-        """Everything needed to rebuild the server's train records (final states included)."""
+        """Everything needed to rebuild the server's train records (final states included).
+
+        Read in one transaction: one consistent state of every table, even while another
+        process writes (PostgreSQL) or the ``sqlite3`` shell does.
+        """
+        with self._transaction(self._BEGIN_READ):
+            return self._load()
+
+    def _load(self) -> Snapshot:
         tsrs = {
             row[0]: StoredTsr(
                 TsrSet(row[0], row[1], row[2], row[3], row[4], row[5]),
@@ -639,12 +677,6 @@ class Store:
             for seq, at_s, actor, action, train, detail in self._read(sql + " ORDER BY seq", params)
         ]
 
-    def _read(self, sql: str, params: tuple[Any, ...] = ()) -> list[tuple[Any, ...]]:
-        try:
-            return self._db.execute(sql, params).fetchall()
-        except sqlite3.Error as exc:
-            raise StoreError(f"cannot read {self.path} ({exc})") from None
-
     def _tsr(self, session: int) -> tuple[TsrSet, str] | None:
         """The restriction recorded under ``session`` and who set it."""
         rows = self._read(
@@ -660,6 +692,141 @@ class Store:
     def _require_tsr(self, session: int) -> None:
         if not self._read("SELECT 1 FROM tsrs WHERE session = ?", (session,)):
             raise _refuse("session", session, "a session recorded with record_tsr() first")
+
+
+# --- SQLite ------------------------------------------------------------------------------------
+
+
+class Store(GroundStore):
+    """SQLite store of the ground (WAL, ``synchronous=FULL`` by default).
+
+    Parameters
+    ----------
+    path
+        Database file (created with its schema if missing), or ``":memory:"``.
+    synchronous
+        ``"FULL"`` (default: every commit survives a power loss) or ``"NORMAL"`` (survives
+        a crash of the process only); see the module docstring.
+    """
+
+    _FIELD = "path"
+    # IMMEDIATE takes the write lock at once: a transaction never fails half-way on
+    # upgrading a read lock another connection also holds.
+    _BEGIN_WRITE = "BEGIN IMMEDIATE"
+    # deferred: in WAL mode one snapshot from the first read to the end, blocking no writer
+    _BEGIN_READ = "BEGIN"
+    _COLUMN_TYPES: ClassVar[Mapping[str, str]] = {
+        "int": "INTEGER",
+        "real": "REAL",
+        "seq_key": "INTEGER PRIMARY KEY AUTOINCREMENT",
+    }
+    _DB_ERRORS = (sqlite3.Error,)
+
+    def __init__(self, path: str | Path = DEFAULT_PATH, *, synchronous: str = "FULL") -> None:
+        if synchronous not in SYNCHRONOUS:
+            raise _refuse("synchronous", synchronous, f"one of {', '.join(SYNCHRONOUS)}")
+        text = str(path)
+        if text != MEMORY:
+            file = Path(text)
+            if file.is_dir():
+                raise _refuse("path", text, "a database file, not a directory")
+            if not file.parent.is_dir():
+                raise _refuse("path", text, "a file in an existing directory")
+        super().__init__(text)
+        try:
+            # isolation_level=None: no implicit transactions; ours are explicit (BEGIN).
+            self._db = sqlite3.connect(text, isolation_level=None)
+        except sqlite3.Error as exc:
+            raise _refuse("path", text, f"a SQLite database that can be opened ({exc})") from None
+        try:
+            self._configure(synchronous)
+            self._migrate()
+        except BaseException:
+            self._db.close()
+            raise
+
+    def _configure(self, synchronous: str) -> None:
+        try:
+            mode = self._db.execute("PRAGMA journal_mode=WAL").fetchone()[0]
+            self._db.execute(f"PRAGMA synchronous={synchronous}")
+            self._db.execute("PRAGMA foreign_keys=ON")
+            # a reader (the sqlite3 shell) may hold a lock for a moment
+            self._db.execute("PRAGMA busy_timeout=5000")
+        except sqlite3.Error as exc:
+            raise _refuse("path", self.path, f"a SQLite database ({exc})") from None
+        if self.path != MEMORY and str(mode).lower() != "wal":
+            raise _refuse("path", self.path, f"a file system that supports WAL (got {mode})")
+
+    def _execute(self, sql: str, params: Sequence[Any] = ()) -> Cursor:
+        return self._db.execute(sql, params)
+
+    def _object_names(self) -> set[str]:
+        # every table, index, view and trigger: a database with any of them is not empty
+        return {row[0] for row in self._read("SELECT name FROM sqlite_master")}
+
+    def close(self) -> None:
+        self._db.close()
+
+    @property
+    def journal_mode(self) -> str:
+        return str(self._db.execute("PRAGMA journal_mode").fetchone()[0]).lower()
+
+    @property
+    def synchronous(self) -> str:
+        # PRAGMA synchronous answers 0 OFF, 1 NORMAL, 2 FULL, 3 EXTRA
+        level = int(self._db.execute("PRAGMA synchronous").fetchone()[0])
+        return ("OFF", "NORMAL", "FULL", "EXTRA")[level]
+
+
+# --- choosing a backend ------------------------------------------------------------------------
+
+
+def is_postgres_url(target: str | Path) -> bool:
+    """Whether ``--db`` names a PostgreSQL server (``postgresql://...``) rather than a file."""
+    return str(target).lower().startswith(POSTGRES_SCHEMES)
+
+
+def open_store(target: str | Path = DEFAULT_PATH) -> GroundStore:
+    """The store ``ground serve --db TARGET`` uses: a PostgreSQL URL
+    (``postgresql://`` or ``postgres://``) opens :class:`PostgresStore`, anything else is a
+    SQLite file (or ``":memory:"``) for :class:`Store`."""
+    if not is_postgres_url(target):
+        return Store(target)
+    try:
+        from railpilot.ground.store_postgres import PostgresStore
+    except ModuleNotFoundError as exc:
+        if exc.name is None or not exc.name.startswith("psycopg"):
+            raise
+        raise _refuse(
+            "db", redact_dsn(str(target)), "psycopg installed (pip install 'psycopg[binary]')"
+        ) from None
+    return PostgresStore(str(target))
+
+
+_URL_PASSWORD_PARAM = re.compile(r"([?&])password=[^&]*&?", re.IGNORECASE)
+_KEYWORD_PASSWORD = re.compile(r"\bpassword\s*=\s*(?:'(?:[^'\\]|\\.)*'?|\S*)\s*", re.IGNORECASE)
+
+
+def redact_dsn(dsn: str) -> str:
+    """A PostgreSQL connection string without its password, for status, logs and errors.
+
+    ``postgresql://ground:secret@db.example/railpilot`` -> ``postgresql://ground@db.example/
+    railpilot``; a ``password=`` URL parameter or ``key=value`` entry is dropped. Works on
+    strings libpq would refuse too (their error messages may quote the password).
+    """
+    if not is_postgres_url(dsn):
+        return _KEYWORD_PASSWORD.sub("", dsn).strip()
+    scheme, _, rest = dsn.partition("://")
+    # user info ends at the last '@' before the query: a password may hold '/' or '@'
+    head = rest.split("?", 1)[0]
+    at = head.rfind("@")
+    if at >= 0:
+        user = head[:at].split(":", 1)[0]
+        rest = f"{user}@{rest[at + 1 :]}"
+    path, question, query = rest.partition("?")
+    if question:
+        query = _URL_PASSWORD_PARAM.sub(r"\1", "?" + query).rstrip("?&")
+    return f"{scheme}://{path}{query}"
 
 
 # --- validation --------------------------------------------------------------------------------

@@ -63,6 +63,7 @@ from railpilot.link.messages import U32_MAX, TargetPoint, TargetReason, TravelDi
 
 from .occupancy import (
     Occupancy,
+    TrainOccupancy,
     blocks_by_id,
     check_train_id,
     check_travel_direction,
@@ -243,14 +244,15 @@ def _check_horizon(line: RailLine, train_id: int, horizon_m: object) -> float:
 def _reason(
     section: BlockSection,
     occupancy: Occupancy,
-    trains_ahead: frozenset[int],
+    me: TrainOccupancy,
     restricted: Mapping[str, TargetReason],
 ) -> TargetReason | None:
     declared = restricted.get(section.id)
     if declared is not None:
         return declared  # declarations come first (REASON_PRECEDENCE)
-    if any(t in trains_ahead for t in occupancy.occupants(section.id)):
-        return TargetReason.TRAIN_AHEAD
+    for t in occupancy.occupants(section.id):
+        if t != me.train_id and occupancy.train(t).is_ahead_of(me):
+            return TargetReason.TRAIN_AHEAD
     return None
 
 
@@ -276,11 +278,8 @@ def find_target(
         if horizon_m is None
         else _check_horizon(line, train_id, horizon_m)
     )
-    ahead = frozenset(
-        t.train_id for t in occupancy.trains if t.train_id != train_id and t.is_ahead_of(me)
-    )
     sections = line.block_sections_for(me.direction)
-    first = next((k for k, s in enumerate(sections) if s.id == me.head_block_id), None)
+    first = line.block_index(me.head_block_id, me.direction)
     if first is None:
         raise ConfigError(
             "occupancy.head_block_id",
@@ -293,7 +292,7 @@ def find_target(
         # ahead only when its signal stands before the horizon.
         if k > first and sign * (horizon - section.entry_m) <= 0.0:
             break
-        reason = _reason(section, occupancy, ahead, held)
+        reason = _reason(section, occupancy, me, held)
         if reason is not None:
             return Target(float(section.entry_m), reason, section.id, section.entry_signal)
     return None
@@ -340,6 +339,10 @@ class _Sent:
     target_id: int
 
 
+#: A target held since before a restart whose signal the tracker does not know.
+_UNKNOWN = Target(-1.0, TargetReason.OTHER, "", None)  # no real block has id ""
+
+
 class TargetPointTracker:
     """Turns occupancy and declarations into the target point events to send.
 
@@ -381,6 +384,24 @@ class TargetPointTracker:
     def forget(self, train_id: int) -> None:
         """Drop ``train_id`` (deregistered): nothing is sent to it any more."""
         self._sent.pop(check_train_id(train_id), None)
+
+    def take_id(self) -> int:
+        """An id for a target point sent by other means (a dispatcher's, by hand): ids
+        come from this one counter so a train never sees one id with two contents."""
+        target_id = self._check_id(self._next_id)
+        self._next_id += 1
+        return target_id
+
+    def resume(self, train_id: int, target_id: int, *, holding: bool) -> None:
+        """After a restart: ``train_id`` holds target ``target_id`` as the store says.
+
+        ``holding``: that target holds the train (not a clear). The tracker does not know
+        which signal it was, so its next update sends the train what holds now, a target
+        or a clear, under a fresh id; a train the store shows clear is left as it is.
+        """
+        check_train_id(train_id)
+        self._next_id = max(self._next_id, target_id + 1)
+        self._sent[train_id] = _Sent(_UNKNOWN if holding else None, target_id)
 
     def _check_id(self, target_id: int) -> int:
         if target_id > U32_MAX:

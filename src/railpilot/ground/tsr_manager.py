@@ -223,6 +223,30 @@ class TsrManager:
         entry.state = LineTsrState.CANCELLED
         return [Cancel(t, session) for t in sorted(entry.delivered_to)]
 
+    def deliver_also(self, session: int, train_ids: Iterable[int]) -> list[Action]:
+        """Deliver active TSR ``session`` to ``train_ids`` too, whether or not the
+        manager's view says it concerns them (a dispatcher naming trains errs on the safe
+        side: a train the ground has no position for yet still gets it)."""
+        entry = self._entry(session)
+        if entry.state is not LineTsrState.ACTIVE:
+            return []
+        actions: list[Action] = []
+        for train_id in sorted(set(train_ids) - entry.delivered_to):
+            entry.delivered_to.add(train_id)
+            actions.append(Deliver(train_id, entry.tsr))
+        return actions
+
+    def restore(self, tsr: LineTsr, state: LineTsrState, delivered_to: Iterable[int]) -> None:
+        """Take back a TSR from the store after a restart (nothing is sent: the link's
+        records, restored beside it, resume each delivery where it stood)."""
+        if tsr.session in self._tsrs:
+            raise ConfigError("tsr.session", tsr.session, "a session not restored twice")
+        self._tsrs[tsr.session] = _Entry(tsr, LineTsrState(state), set(delivered_to))
+
+    def next_session(self) -> int:
+        """One above every session set so far (1 for the first)."""
+        return max(self._tsrs, default=0) + 1
+
     # --- the trains
 
     def update_route(self, route: TrainRoute, now_s: float) -> list[Action]:

@@ -168,12 +168,20 @@ class OnboardEndpoint(Endpoint):
         #: TSRs being enforced, by session number.
         self.active_tsrs: dict[int, AppliedTsr] = {}
         self._finished_tsrs: set[int] = set()  # cancelled or expired: never applied again
+        #: Every target point received, by id; the newest id is the one in force.
         self.target_points: dict[int, TargetPoint] = {}
         self._dispatch_seen: set[int] = set()
         self.time_offset_s: float | None = None
 
     def _history(self, peer_id: int) -> PeerHistory:
         return self._ground_history
+
+    @property
+    def target_point(self) -> TargetPoint | None:
+        """The target point in force: the newest id supersedes every older one (a moved
+        target or a clear comes under a fresh id; a resent older one arriving late is
+        acknowledged but changes nothing). protocol.md 8.4."""
+        return self.target_points[max(self.target_points)] if self.target_points else None
 
     # --- lifecycle (adapter) --------------------------------------------------------------------
 

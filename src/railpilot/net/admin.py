@@ -3,26 +3,26 @@
 One request per line, one response per line (UTF-8 JSON objects). The socket binds to a
 loopback address and refuses anything else: it is an operator's local control port, not
 part of the train-ground link (there is no authentication on it beyond "you can reach
-127.0.0.1 on this host"). Units are the operator's: km posts in km, speeds in km/h.
+127.0.0.1 on this host").
 
-Requests (``trains`` is a list of train ids or ``"all"`` = every train that has
-registered at least once)::
+A request is an operation of the one schema the admin port, the dashboard's HTTP API and
+the command line share (ground/operations.py, docs/link-operations.md): ``"op"`` and the
+operation's fields, in the dispatcher's units (km posts in km, km/h, minutes from now),
+plus who asks (``"actor"``, default ``"admin"``, kept in the store's audit log)::
 
     {"op": "status"}
-    {"op": "tsr_set", "trains": [1001], "session": 7, "start_km": 12.3, "end_km": 13.1,
-     "limit_kmh": 45, "valid_s": 3600}                        # optional "valid_from_s"
-    {"op": "tsr_cancel", "trains": "all", "session": 7}
-    {"op": "target", "trains": [1001], "target_id": 3, "km": 15.2, "reason": "TRAIN_AHEAD"}
-    {"op": "dispatch", "trains": [1001], "command": 42, "text": "hold at next station"}
+    {"op": "tsr_set", "start_km": 12.3, "end_km": 13.1, "limit_kmh": 45,
+     "valid_until_min": 60, "reason": "track work"}     # session?, trains?, valid_from_min?
+    {"op": "tsr_cancel", "session": 7}
+    {"op": "restriction_set", "block": "U1203", "reason": "section_fault"}
+    {"op": "restriction_clear", "id": 1}
+    {"op": "target", "trains": [1001], "km": 15.2, "reason": "train_ahead"}
+    {"op": "dispatch", "trains": "all", "text": "hold at next station"}
 
-Every delivery request may name who asks (``"actor"``, default ``"admin"``) and a TSR why
-(``"reason"``); both go to the ground store's audit log (docs/ground-store.md).
-
-Responses: ``{"ok": true, "result": {...}}`` or ``{"ok": false, "error": "..."}``. For a
-delivery, ``result.trains`` maps each train id to ``"sending"`` (connected; resent until
-acknowledged), ``"queued until the train registers"`` or ``"error: ..."``. A delivery
-naming a train without a key (authentication on), and a TSR whose start and end are the
-same km post, are refused as a whole (``ok: false``) and nothing is sent.
+Responses: ``{"ok": true, "result": {...}}`` or ``{"ok": false, "error": "...", "errors":
+{field: message}}`` (nothing was done). A result's ``deliveries`` maps each train id to
+``"sending"`` (connected; resent until acknowledged), ``"queued until the train
+registers"`` or ``"error: ..."``.
 """
 
 from __future__ import annotations
@@ -31,26 +31,22 @@ import asyncio
 import contextlib
 import json
 import logging
-import math
-import time
 from typing import Any
 
 from railpilot.errors import RailpilotError
-from railpilot.link import DispatchCommand, LinkError, TargetPoint, TargetReason, TsrSet
-from railpilot.units import kmh_to_mps
+from railpilot.ground.operations import OperationError
 
+from .dispatch_host import DispatchHost
 from .logfmt import kv
-from .server import GroundServer
 
 log = logging.getLogger("railpilot.net.admin")
 
 LOOPBACK = frozenset({"127.0.0.1", "::1", "localhost"})
 MAX_LINE = 64 * 1024
-OPS = ("status", "tsr_set", "tsr_cancel", "target", "dispatch")
 
 
 class AdminError(RailpilotError):
-    """A bad admin request (names the field, the value and what is allowed)."""
+    """A bad admin request or answer (names the field, the value and what is allowed)."""
 
 
 def require_loopback(field: str, host: str) -> None:
@@ -58,40 +54,12 @@ def require_loopback(field: str, host: str) -> None:
         raise AdminError(f"{field} = {host!r} is not allowed: expected a loopback address")
 
 
-def _number(req: dict[str, Any], name: str, lo: float, hi: float) -> float:
-    value = req.get(name)
-    if (
-        not isinstance(value, int | float)
-        or isinstance(value, bool)
-        or not math.isfinite(value)
-        or not lo <= value <= hi
-    ):
-        raise AdminError(f"{name} = {value!r} is not allowed: expected a number in [{lo}, {hi}]")
-    return float(value)
-
-
-def _text(req: dict[str, Any], name: str, default: str, max_len: int) -> str:
-    value = req.get(name, default)
-    if not isinstance(value, str) or len(value) > max_len or not value.isprintable():
-        raise AdminError(
-            f"{name} = {value!r} is not allowed: expected at most {max_len} printable characters"
-        )
-    return value
-
-
-def _int(req: dict[str, Any], name: str, lo: int, hi: int) -> int:
-    value = req.get(name)
-    if type(value) is not int or not lo <= value <= hi:
-        raise AdminError(f"{name} = {value!r} is not allowed: expected an integer in [{lo}, {hi}]")
-    return value
-
-
 class AdminServer:
-    """Serves :data:`OPS` for one :class:`GroundServer`."""
+    """Serves the operations (:data:`~railpilot.ground.operations.OPS`) of one ground."""
 
-    def __init__(self, ground: GroundServer, *, host: str = "127.0.0.1", port: int = 0) -> None:
+    def __init__(self, host_app: DispatchHost, *, host: str = "127.0.0.1", port: int = 0) -> None:
         require_loopback("admin host", host)
-        self.ground = ground
+        self.host_app = host_app
         self.host = host
         self.port = port
         self._server: asyncio.Server | None = None
@@ -143,109 +111,19 @@ class AdminServer:
         """Run one request; never raises for a bad request (the error goes back)."""
         try:
             if not isinstance(request, dict):
-                raise AdminError("request must be a JSON object")
-            op = request.get("op")
-            if op not in OPS:
-                raise AdminError(f"op = {op!r} is not allowed: expected one of {', '.join(OPS)}")
-            kv(log, logging.INFO, "admin_request", op=op)
-            if op == "status":
-                return {"ok": True, "result": self.ground.status()}
-            trains = self._trains(request)
-            actor = _text(request, "actor", "admin", 64)
-            if not actor.strip():
-                raise AdminError(f"actor = {actor!r} is not allowed: expected a name")
-            g = self.ground
-            if op == "tsr_set":
-                valid_s = _number(request, "valid_s", 1.0, 30 * 86400.0)
-                start = request.get("valid_from_s", time.time())
-                if not isinstance(start, int | float) or isinstance(start, bool):
-                    raise AdminError(f"valid_from_s = {start!r} is not allowed: expected epoch s")
-                session = _int(request, "session", 1, 0xFFFF_FFFF)
-                start_km = _number(request, "start_km", 0.0, 10_000.0)
-                end_km = _number(request, "end_km", 0.0, 10_000.0)
-                if round(start_km * 100_000) == round(end_km * 100_000):
-                    # The train would answer INVALID (protocol.md 8.3): refuse it here.
-                    raise AdminError(
-                        f"end_km = {end_km!r} is not allowed: expected a km post at least "
-                        f"1 cm away from start_km = {start_km!r} (a TSR needs a length)"
-                    )
-                tsr = TsrSet(
-                    session,
-                    start_km * 1000.0,
-                    end_km * 1000.0,
-                    kmh_to_mps(_number(request, "limit_kmh", 0.1, 360.0)),
-                    float(start),
-                    float(start) + valid_s,
+                raise OperationError({"request": "expected a JSON object"})
+            fields = dict(request)
+            op = fields.pop("op", None)
+            actor = fields.pop("actor", "admin")
+            if not isinstance(actor, str) or not actor.strip() or len(actor) > 64:
+                raise OperationError(
+                    {"actor": f"{actor!r} is not allowed: expected a name of 1 to 64 characters"}
                 )
-                reason = _text(request, "reason", "", 200)
-                results = await g.paced(
-                    lambda ids, item: g.set_tsr(ids, item, actor=actor, reason=reason), trains, tsr
-                )
-            elif op == "tsr_cancel":
-                session = _int(request, "session", 1, 0xFFFF_FFFF)
-                results = await g.paced(
-                    lambda ids, item: g.cancel_tsr(ids, item, actor=actor), trains, session
-                )
-            elif op == "target":
-                reason_name = str(request.get("reason", "OTHER")).upper().replace("-", "_")
-                if reason_name not in TargetReason.__members__:
-                    raise AdminError(
-                        f"reason = {request.get('reason')!r} is not allowed: expected one of "
-                        f"{', '.join(TargetReason.__members__)}"
-                    )
-                target = TargetPoint(
-                    _int(request, "target_id", 0, 0xFFFF_FFFF),
-                    _number(request, "km", 0.0, 10_000.0) * 1000.0,
-                    TargetReason[reason_name],
-                )
-                results = await g.paced(
-                    lambda ids, item: g.send_target_point(ids, item, actor=actor), trains, target
-                )
-            else:
-                text = request.get("text")
-                if not isinstance(text, str):
-                    raise AdminError(f"text = {text!r} is not allowed: expected a string")
-                command = DispatchCommand(_int(request, "command", 1, 0xFFFF_FFFF), text)
-                results = await g.paced(
-                    lambda ids, item: g.send_dispatch_command(ids, item, actor=actor),
-                    trains,
-                    command,
-                )
-            return {"ok": True, "result": {"trains": {str(t): r for t, r in results.items()}}}
-        except (AdminError, LinkError) as exc:
-            return {"ok": False, "error": str(exc)}
-
-    def _trains(self, request: dict[str, Any]) -> list[int]:
-        trains = request.get("trains")
-        if trains == "all":
-            known = self.ground.known_trains()
-            if not known:
-                raise AdminError(
-                    "trains = 'all' is not allowed: expected at least one train that has "
-                    "registered (none has yet)"
-                )
-            return known
-        if (
-            not isinstance(trains, list)
-            or not trains
-            or not all(type(t) is int and 1 <= t <= 0xFFFF_FFFF for t in trains)
-        ):
-            raise AdminError(
-                f"trains = {trains!r} is not allowed: expected 'all' or a list of train ids "
-                "in [1, 4294967295]"
-            )
-        ids = list(dict.fromkeys(trains))
-        keys = self.ground.keys
-        if self.ground.config.require_auth and keys is not None:
-            # Such a train can never pass the MAC check, so it can never register and a
-            # delivery would wait for it forever: refuse the whole request instead.
-            keyless = [t for t in ids if keys.active(t) is None]
-            if keyless:
-                raise AdminError(
-                    f"trains = {keyless!r} is not allowed: expected train ids that have a key "
-                    "in the server's key file (authentication is on)"
-                )
-        return ids
+            kv(log, logging.INFO, "admin_request", op=op, actor=actor)
+            result = await self.host_app.execute(op, fields, actor.strip())
+            return {"ok": True, "result": result}
+        except OperationError as exc:
+            return {"ok": False, "error": str(exc), "errors": exc.errors}
 
 
 def _line(obj: dict[str, Any]) -> bytes:

@@ -12,6 +12,23 @@ Latency of running info = ground receipt time (after every check, when the event
 the application) - the frame's timestamp, which the onboard core takes from
 ``time.time()`` when it encodes the frame. Both clocks are this machine's clock.
 
+The trains run on the bundled heavy-haul line (:data:`LINE`): spread along its whole
+length, every other one each way, each at a steady speed below the line's static limit over
+the stretch it covers during the run (:func:`layout`), so the dashboard shows them where a
+line would have them (two trains may still overlap: 1,000 trains of 2.6 km do not fit on
+590 km of double track; it is a load test).
+
+By default the ground is the link layer alone (frames, checks, HMAC, the train records).
+With ``dispatch=True`` it also runs the dispatch core as ``railpilot ground serve`` does
+(:class:`~railpilot.net.dispatch_host.DispatchHost`: registry, TSR manager, occupancy and
+target points every second). With ``dashboard=True`` (which implies ``dispatch``) it also
+serves the dispatcher dashboard (web/, in the server's own event loop, as ``ground serve
+--http-port``), and the page is opened in Debian's headless chromium in another child
+process (:mod:`railpilot.net.page_probe`);
+the report gains a ``dashboard`` object: how often the page drew (over the steady window,
+after the ramp and before the end), the longest gap between two renders, and what each
+WebSocket push cost the server's loop (snapshot build + JSON encode) and weighed.
+
 Keys are derived from the seed in memory (test keys: never written, never used in service).
 """
 
@@ -20,17 +37,23 @@ from __future__ import annotations
 import asyncio
 import contextlib
 import hashlib
+import itertools
 import logging
 import math
 import multiprocessing
 import os
+import random
 import resource
+import secrets
 import statistics
 import time
 from dataclasses import asdict, dataclass
 from multiprocessing.connection import Connection
+from pathlib import Path
 from typing import Any
 
+from railpilot.errors import ConfigError
+from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link import (
     Event,
     GroundConfig,
@@ -47,6 +70,7 @@ from railpilot.link import (
 from railpilot.units import kmh_to_mps
 
 from .client import OnboardClient, Trajectory
+from .page_probe import ProbeOptions, probe_main
 from .server import GroundServer
 from .timers import TickScheduler
 
@@ -58,6 +82,12 @@ MAX_TRAINS = 5_000
 MAX_SECONDS = 600.0
 TSR_SESSION = 1
 HOST = "127.0.0.1"
+#: The line the trains run on (and the dashboard draws).
+LINE = "heavy-haul"
+#: Train length [m] (a heavy-haul train).
+TRAIN_LENGTH_M = 2600.0
+#: Each train's speed is this share of the lowest static limit over its stretch (seeded).
+SPEED_SHARE = (0.6, 0.95)
 
 
 @dataclass(frozen=True, slots=True)
@@ -74,6 +104,12 @@ class LoadtestOptions:
     client_processes: int = 1
     #: How long after the end the server waits for frames still in flight [s].
     drain_s: float = 3.0
+    #: Also run the ground's dispatch core (as ``ground serve``); ``dashboard`` implies it.
+    dispatch: bool = False
+    #: Also serve the dispatcher dashboard and keep it open in headless chromium.
+    dashboard: bool = False
+    #: With ``dashboard``: a PNG of the page (its viewport) at the end of the run.
+    screenshot: str | None = None
 
     def __post_init__(self) -> None:
         if type(self.trains) is not int or not 1 <= self.trains <= MAX_TRAINS:
@@ -85,6 +121,8 @@ class LoadtestOptions:
         if type(self.client_processes) is not int or not 1 <= self.client_processes <= 16:
             raise LinkConfigError("client_processes", self.client_processes, "1..16")
         LinkTimers(cycle_s=self.cycle_s, max_round_trip_s=max(3.0, 3 * self.cycle_s))
+        if self.screenshot is not None and not self.dashboard:
+            raise LinkConfigError("screenshot", self.screenshot, "to be given with dashboard")
 
     @property
     def ramp(self) -> float:
@@ -107,6 +145,37 @@ def loadtest_keys(seed: int, train_ids: range) -> KeyStore:
     return keys
 
 
+def layout(options: LoadtestOptions, line: RailLine) -> dict[int, Trajectory]:
+    """Where each train starts, which way it goes and how fast (seeded).
+
+    Trains alternate UP and DOWN; each direction's trains are spread evenly over the line
+    (a seeded jitter within each one's slot), far enough from its ends that none runs off
+    during the run. Each runs at a seeded share (:data:`SPEED_SHARE`) of the lowest static
+    limit over the stretch it can cover during the run, for its category: UP trains are
+    taken as loaded (the line's first category) and DOWN ones as empty (its last), as the
+    dashboard takes them (web/ground_source.py).
+    """
+    rng = random.Random(options.seed)
+    ids = list(options.train_ids())
+    run_s = options.ramp + options.seconds + options.drain_s + 10.0
+    lo, hi = line.start_m + TRAIN_LENGTH_M, line.end_m - TRAIN_LENGTH_M
+    out: dict[int, Trajectory] = {}
+    for k, (travel, category) in enumerate(((UP, line.categories[0]), (DOWN, line.categories[-1]))):
+        edges, limits = line.static_limit(category, travel)
+        reach = float(limits.max()) * run_s  # furthest a train of this kind goes [m]
+        span = max(0.0, hi - lo - reach)
+        sign = 1.0 if travel is UP else -1.0
+        mine = ids[k::2]
+        for i, train in enumerate(mine):
+            offset = (i + rng.random()) / len(mine) * span
+            start = lo + offset if travel is UP else hi - offset
+            a, b = sorted((start, start + sign * reach))
+            covered = (edges[:-1] < b) & (edges[1:] > a)
+            speed = rng.uniform(*SPEED_SHARE) * float(limits[covered].min())
+            out[train] = Trajectory(start_m=start, speed_mps=speed, direction=travel)
+    return out
+
+
 def _raise_fd_limit(need: int) -> None:
     """Each train is one socket per process; lift the soft limit up to the hard one."""
     soft, hard = resource.getrlimit(resource.RLIMIT_NOFILE)
@@ -123,19 +192,21 @@ def _cpu_s() -> float:
 # --- onboard side (child process) -----------------------------------------------------------
 
 
-def _client_main(options: LoadtestOptions, train_ids: list[int], conn: Connection) -> None:
+def _client_main(
+    options: LoadtestOptions, trajectories: dict[int, Trajectory], conn: Connection
+) -> None:
     """Entry point of a client process: wait for the go, run the trains, report."""
-    _raise_fd_limit(len(train_ids) + 256)
+    _raise_fd_limit(len(trajectories) + 256)
     conn.send("ready")
     port, start_at = conn.recv()
-    stats = asyncio.run(_run_clients(options, train_ids, port, start_at, conn))
+    stats = asyncio.run(_run_clients(options, trajectories, port, start_at, conn))
     conn.send(stats)
     conn.close()
 
 
 async def _run_clients(
     options: LoadtestOptions,
-    train_ids: list[int],
+    trajectories: dict[int, Trajectory],
     port: int,
     start_at: float,
     conn: Connection,
@@ -145,14 +216,14 @@ async def _run_clients(
     scheduler = TickScheduler()
     clients: list[OnboardClient] = []
     applied: dict[int, int] = {}
-    for train in train_ids:
+    for train, trajectory in trajectories.items():
         config = OnboardConfig(
             train_id=train,
             ground_id=GROUND_ID,
             train_number=f"K{train % 100000}",
             loco_number=f"HXD{train % 10000}",
             driver_id=train,
-            train_length_m=2600.0,
+            train_length_m=TRAIN_LENGTH_M,
             timers=timers,
         )
         client = OnboardClient(
@@ -160,7 +231,7 @@ async def _run_clients(
             keys,
             HOST,
             port,
-            trajectory=Trajectory(start_m=100_000.0 + (train % 50) * 2000.0, speed_mps=22.0),
+            trajectory=trajectory,
             seed=options.seed * 1_000_003 + train,
             scheduler=scheduler,
             count_sent=True,
@@ -219,15 +290,99 @@ async def _run_clients(
 # --- ground side (this process) -------------------------------------------------------------
 
 
+def chromium() -> Path:
+    """The browser ``dashboard`` needs (looked up at call time: tests point it elsewhere)."""
+    from railpilot.web import browser
+
+    return browser.CHROMIUM
+
+
+def check_dashboard(options: LoadtestOptions) -> None:
+    """Refuse ``dashboard`` without the browser, before anything starts."""
+    if options.dashboard and not chromium().exists():
+        raise ConfigError(
+            "dashboard",
+            True,
+            f"Debian's chromium at {chromium()} to open the page in (apt-get install "
+            "chromium; no browser is downloaded)",
+        )
+
+
 def run_loadtest(options: LoadtestOptions) -> dict[str, Any]:
     """Run the load test and return its report (one JSON-ready dict)."""
+    check_dashboard(options)
     _raise_fd_limit(options.trains + 256)
     return asyncio.run(_run(options))
 
 
+class _Dashboard:
+    """The dashboard over the load test's ground, and the page open in the probe process."""
+
+    def __init__(self, host: Any, options: LoadtestOptions) -> None:
+        from railpilot.web.ground_source import ServerSource
+
+        self.options = options
+        self.source = ServerSource(host)
+        self.http: Any = None
+        self.task: asyncio.Task[None] | None = None
+        self.pipe: Connection | None = None
+        self.proc: Any = None
+        #: What the server pushed (web.app.Push), read when the page closes.
+        self.pushed: list[Any] = []
+
+    async def start(self, ctx: Any) -> None:
+        """Serve the page, then open it in chromium (in its own process)."""
+        from railpilot.web.browser import CHROMIUM_FLAGS
+        from railpilot.web.ground_source import serve_dashboard
+
+        token = secrets.token_urlsafe(16)  # the page only reads: nobody needs it
+        self.http, self.task = await serve_dashboard(self.source, token=token, host=HOST)
+        probe = ProbeOptions(
+            url=f"http://{HOST}:{self.http.port}/",
+            executable=str(chromium()),
+            flags=CHROMIUM_FLAGS,
+            screenshot=self.options.screenshot,
+        )
+        parent_end, child_end = ctx.Pipe()
+        self.proc = ctx.Process(target=probe_main, args=(probe, child_end), daemon=True)
+        self.proc.start()
+        self.pipe = parent_end
+
+    async def wait_ready(self) -> None:
+        assert self.pipe is not None
+        answer = await _recv(self.pipe, self.proc, 90.0, "dashboard page")
+        if "error" in answer:
+            raise RuntimeError(f"the dashboard page did not open: {answer['error']}")
+
+    async def finish(self) -> dict[str, Any]:
+        """Close the page (what it drew comes back) and stop serving."""
+        assert self.pipe is not None
+        self.pipe.send("stop")
+        result: dict[str, Any] = await _recv(self.pipe, self.proc, 60.0, "dashboard page")
+        self.pushed = list(self.http.config.app.state.pushes)
+        await self.stop()
+        return result
+
+    async def stop(self) -> None:
+        if self.proc is not None:
+            await asyncio.get_running_loop().run_in_executor(None, self.proc.join, 10.0)
+            if self.proc.is_alive():
+                self.proc.kill()
+            self.proc = None
+        if self.http is not None and self.task is not None:
+            self.http.should_exit = True
+            with contextlib.suppress(Exception):
+                await asyncio.wait_for(self.task, 10.0)
+            self.http = None
+
+
 async def _run(options: LoadtestOptions) -> dict[str, Any]:
+    from railpilot.line.loader import load_line
+
     ids = list(options.train_ids())
     keys = loadtest_keys(options.seed, options.train_ids())
+    line = load_line(LINE)
+    trajectories = layout(options, line)
     server = GroundServer(
         GroundConfig(ground_id=GROUND_ID, timers=options.timers()),
         keys,
@@ -248,23 +403,39 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
             acknowledged.add(event.train_id)
 
     server.add_listener(listener)
-    _, port = await server.start()
-    cpu0 = _cpu_s()
+    host = None
+    if options.dispatch or options.dashboard:
+        from .dispatch_host import DispatchHost
 
+        host = DispatchHost(server, line)
+    _, port = await server.start()
+    if host is not None:
+        host.start()
     ctx = multiprocessing.get_context("spawn")
+    dashboard = None
+    if options.dashboard:
+        dashboard = _Dashboard(host, options)
+        await dashboard.start(ctx)
+
     shares = [ids[i :: options.client_processes] for i in range(options.client_processes)]
     pipes: list[Connection] = []
     procs = []
     for share in shares:
         parent_end, child_end = ctx.Pipe()
-        proc = ctx.Process(target=_client_main, args=(options, share, child_end), daemon=True)
+        mine = {train: trajectories[train] for train in share}
+        proc = ctx.Process(target=_client_main, args=(options, mine, child_end), daemon=True)
         proc.start()
         pipes.append(parent_end)
         procs.append(proc)
+    page: dict[str, Any] | None = None
     try:
         for p, proc in zip(pipes, procs, strict=True):
             await _recv(p, proc, 60.0)  # "ready"
+        if dashboard is not None:
+            await dashboard.wait_ready()  # the page has drawn its first snapshot
+        cpu0 = _cpu_s()
         start_at = time.time() + 0.3
+        loop_offset = asyncio.get_running_loop().time() - time.time()
         for p in pipes:
             p.send((port, start_at))
 
@@ -287,7 +458,11 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
         while (received < sent or len(acknowledged) < tsr_sent) and time.time() < drain_until:
             await asyncio.sleep(0.05)
         counters = server.counters()
+        target_points = sum(len(r.target_points) for r in server.records.values())
         cpu_server = _cpu_s() - cpu0
+        wall_server = time.time() - start_at
+        if dashboard is not None:
+            page = await dashboard.finish()
         for p in pipes:
             p.send("bye")
     finally:
@@ -298,6 +473,10 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
             proc.join(timeout=10.0)
             if proc.is_alive():
                 proc.kill()
+        if dashboard is not None:
+            await dashboard.stop()
+        if host is not None:
+            host.stop()
         await server.stop(timeout_s=2.0)
 
     def total(key: str) -> int:
@@ -320,6 +499,7 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
         "tsr_applied_on_trains": total("tsr_applied"),
         "tsr_applied_more_than_once": total("tsr_applied_more_than_once"),
         "tsr_broadcast_ms": round(broadcast_ms, 1),
+        "target_points_sent": target_points,
         "registered": total("registered"),
         "connects": total("connects"),
         "ground_frames_received": counters["frames_received"],
@@ -330,23 +510,76 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
         "link_failures": counters["link_failures"] + total("onboard_link_failures"),
         "onboard_rejected": total("onboard_rejected"),
         "server_cpu_s": round(cpu_server, 2),
+        "server_cpu_pct": round(100.0 * cpu_server / wall_server, 1),
         "clients_cpu_s": round(sum(s["cpu_s"] for s in client_stats), 2),
         "client_processes": options.client_processes,
+        "dispatch": host is not None,
         "cpus": os.cpu_count(),
         "auth": "HMAC-SHA256",
         "options": asdict(options),
     }
+    if dashboard is not None and page is not None:
+        window = (start_at + options.ramp, start_at + options.seconds)
+        pushes = [p for p in dashboard.pushed if window[0] <= p.at_s - loop_offset <= window[1]]
+        report["dashboard"] = dashboard_report(page, pushes, window)
     return report
 
 
-async def _recv(pipe: Connection, proc: Any, timeout_s: float) -> Any:
+def dashboard_report(
+    page: dict[str, Any], pushes: list[Any], window: tuple[float, float]
+) -> dict[str, Any]:
+    """The ``dashboard`` object of the report, from what the page drew (``page``: the probe's
+    answer) and what the server pushed during the steady ``window`` (wall clock [s])."""
+    if "error" in page:
+        return {"error": page["error"], "errors": page.get("errors", [])}
+    w0, w1 = window
+    at_s = sorted(t / 1000.0 for t in page["render_at_ms"])
+    inside = [t for t in at_s if w0 <= t <= w1]
+    before = [t for t in at_s if t < w0]
+    marks = before[-1:] + inside + [w1]  # the gap still open at the end counts too
+    gaps = [b - a for a, b in itertools.pairwise(marks)]
+    in_window = [i for i, t in enumerate(page["render_at_ms"]) if w0 <= t / 1000.0 <= w1]
+    render_ms = sorted(page["render_ms"][i] for i in in_window)
+    paint_ms = sorted(p for i in in_window if (p := page["paint_ms"][i]) is not None)
+    build = sorted(p.build_s * 1000.0 for p in pushes)
+    encode = sorted(p.encode_s * 1000.0 for p in pushes)
+    total = sorted((p.build_s + p.encode_s) * 1000.0 for p in pushes)
+    sizes = [p.size_bytes for p in pushes]
+    return {
+        "renders": page["renders"],
+        "window_s": round(w1 - w0, 2),
+        "renders_in_window": len(inside),
+        "updates_per_s": round(len(inside) / (w1 - w0), 2) if w1 > w0 else None,
+        "max_gap_s": round(max(gaps), 3) if before or inside else None,
+        "render_ms_p50": _pct(render_ms, 50),
+        "render_ms_max": _pct(render_ms, 100),
+        "paint_ms_p50": _pct(paint_ms, 50),
+        "paint_ms_max": _pct(paint_ms, 100),
+        "pushes_in_window": len(pushes),
+        "snapshot_ms_p50": _pct(total, 50),
+        "snapshot_ms_p99": _pct(total, 99),
+        "snapshot_ms_max": _pct(total, 100),
+        "snapshot_build_ms_p50": _pct(build, 50),
+        "snapshot_encode_ms_p50": _pct(encode, 50),
+        "snapshot_bytes": max(sizes) if sizes else None,
+        "trains_drawn": page["trains_shown"],
+        "train_rows": page["rows"],
+        "status": page["status"],
+        "errors": page["errors"],
+        "screenshot": page["screenshot"],
+    }
+
+
+async def _recv(
+    pipe: Connection, proc: Any, timeout_s: float, what: str = "load-test client"
+) -> Any:
     """Receive from a child without blocking the loop; fail fast if the child died."""
     deadline = time.monotonic() + timeout_s
     while not pipe.poll():
         if not proc.is_alive():
-            raise RuntimeError(f"load-test client process exited with code {proc.exitcode}")
+            raise RuntimeError(f"{what} process exited with code {proc.exitcode}")
         if time.monotonic() > deadline:
-            raise TimeoutError(f"load-test client process silent for {timeout_s:.0f} s")
+            raise TimeoutError(f"{what} process silent for {timeout_s:.0f} s")
         await asyncio.sleep(0.02)
     return pipe.recv()
 

@@ -19,11 +19,12 @@ What the server adds on top of the core:
 * key=value logging of every registration, acknowledgement and failure, and of frame
   rejections rate-limited per connection and check (:mod:`railpilot.net.rejections`);
 * graceful shutdown: stop listening, close every connection, stop the timer;
-* with a :class:`~railpilot.ground.store.Store`: every request, delivery state change,
-  registration and acknowledgement is committed *before* the frames of that step leave
-  (persistence before effect), and :meth:`GroundServer.start` rebuilds the records from
-  it, so a ground killed with SIGKILL resumes every pending delivery and still knows (and
-  can cancel) every active TSR (docs/ground-store.md).
+* with a :class:`~railpilot.ground.store.GroundStore` (SQLite or PostgreSQL): every
+  request, delivery state change, registration and acknowledgement is committed
+  *before* the frames of that step leave (persistence before effect), and
+  :meth:`GroundServer.start` rebuilds the records from it, so a ground killed with SIGKILL
+  resumes every pending delivery and still knows (and can cancel) every active TSR
+  (docs/ground-store.md).
 """
 
 from __future__ import annotations
@@ -41,7 +42,7 @@ from dataclasses import fields as dataclass_fields
 from enum import Enum
 from typing import Any
 
-from railpilot.ground.store import Snapshot, Store, StoreError
+from railpilot.ground.store import GroundStore, Snapshot, StoreError
 from railpilot.link import (
     DeliveryState,
     DispatchAcknowledged,
@@ -248,7 +249,7 @@ class GroundServer:
         scheduler: TickScheduler | None = None,
         backlog: int = 1024,
         replay_window_s: float = REPLAY_WINDOW_S,
-        store: Store | None = None,
+        store: GroundStore | None = None,
     ) -> None:
         self.config = config
         self.store = store

@@ -1,8 +1,8 @@
 """The dispatcher dashboard: an HTTP + WebSocket adapter over the ground (docs/dashboard.md).
 
 - :mod:`~railpilot.web.source`: what the page needs of the ground (:class:`DashboardSource`);
+  the TSR form's fields are those of the ground's ``tsr_set`` operation (ground/operations.py);
 - :mod:`~railpilot.web.view`: the snapshot's parts from the ground's own objects;
-- :mod:`~railpilot.web.forms`: the TSR form's schema and validation;
 - :mod:`~railpilot.web.app`: the Starlette app (routes, token, WebSocket pushes);
 - :mod:`~railpilot.web.fake`: a deterministic made-up ground for tests and the demo.
 

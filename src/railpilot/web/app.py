@@ -12,6 +12,26 @@ Routes
 - ``POST /api/tsr/{session}/cancel``: cancel a TSR;
 - ``WS /ws``: a snapshot when the source's version changes, and at least every second.
 
+What the pushes cost the ground: the app runs in the ground server's event loop
+(web/ground_source.py), where every millisecond spent on a snapshot is a millisecond every
+train's frames wait (docs/scaling.md). So:
+
+- one snapshot serves every open page: it is built (and encoded) once per change, and a
+  page that asks within :data:`POLL_INTERVAL_S` of it gets the same text;
+- a changed snapshot waits after the previous one for what that cost to build and encode
+  divided by :data:`LOOP_SHARE` (at least :data:`POLL_INTERVAL_S`, at most
+  :data:`MAX_GAP_SHARE` of ``push_interval_s``): the pushes take about ``LOOP_SHARE`` of
+  the loop, however large the fleet, and a changing ground still reaches the page more
+  than once per ``push_interval_s``;
+- the JSON text is encoded a slice at a time (:data:`ENCODE_SLICE` list items), letting
+  the loop run between slices and between building and encoding, so the trains' frames
+  wait for one slice, not for the whole snapshot.
+
+Each push is recorded in ``app.state.pushes`` (the last :data:`PUSH_RECORDS`, as
+:class:`Push`: when, how long the snapshot took to build and to encode, its size), so a
+tool can see what the page costs the ground's event loop (``railpilot link loadtest
+--dashboard``).
+
 The two ``POST`` routes need ``Authorization: Bearer <token>`` (else 401); a rejected form
 is 422 with ``{"errors": {field: message}}``. Reading needs no token: the page binds to
 127.0.0.1 by default (:data:`DEFAULT_HOST`), answers only to the host names in
@@ -26,7 +46,9 @@ import contextlib
 import hmac
 import json
 import threading
+from collections import deque
 from collections.abc import Sequence
+from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
@@ -56,8 +78,29 @@ MIN_TOKEN_CHARS = 16
 #: this often [s].
 PUSH_INTERVAL_S = 1.0
 POLL_INTERVAL_S = 0.1
+#: The share of the event loop the pushes may take (module docstring): a changed snapshot
+#: waits at least ``cost / LOOP_SHARE`` after the previous one.
+LOOP_SHARE = 0.1
+#: ... but a changed snapshot never waits longer than this share of the push interval.
+MAX_GAP_SHARE = 0.8
+#: Lists longer than this are encoded this many items at a time, the loop running between.
+ENCODE_SLICE = 100
 #: Largest request body [bytes] (the form is a few hundred).
 MAX_BODY_BYTES = 16 * 1024
+#: How many pushes ``app.state.pushes`` keeps.
+PUSH_RECORDS = 10_000
+
+
+@dataclass(frozen=True, slots=True)
+class Push:
+    """One WebSocket push: when (the event loop's clock [s]), the snapshot's build and JSON
+    encoding times [s] and its size [bytes]."""
+
+    at_s: float
+    build_s: float
+    encode_s: float
+    size_bytes: int
+
 
 STATIC = Path(str(resources.files("railpilot.web") / "static"))
 
@@ -65,6 +108,36 @@ STATIC = Path(str(resources.files("railpilot.web") / "static"))
 def _dumps(obj: Any) -> str:
     """JSON as the page reads it (no NaN or infinity: a source bug shows here)."""
     return json.dumps(obj, allow_nan=False, separators=(",", ":"))
+
+
+async def dumps_sliced(obj: Any, slice_items: int = ENCODE_SLICE) -> tuple[str, float]:
+    """``_dumps(obj)``, the same text, encoded a slice at a time: dicts with string keys
+    key by key and lists ``slice_items`` items at a time, yielding to the event loop after
+    each slice. Returns the text and the time spent encoding [s] (the loop's clock; the
+    time others ran in between is not counted)."""
+    loop = asyncio.get_running_loop()
+    spent = 0.0
+
+    async def encode(value: Any) -> str:
+        nonlocal spent
+        if isinstance(value, dict) and value and all(type(k) is str for k in value):
+            items = [f"{_dumps(k)}:{await encode(v)}" for k, v in value.items()]
+            return "{" + ",".join(items) + "}"
+        if isinstance(value, list) and len(value) > slice_items:
+            pieces = []
+            for i in range(0, len(value), slice_items):
+                t0 = loop.time()
+                pieces.append(_dumps(value[i : i + slice_items])[1:-1])
+                spent += loop.time() - t0
+                await asyncio.sleep(0)
+            return "[" + ",".join(pieces) + "]"
+        t0 = loop.time()
+        text = _dumps(value)
+        spent += loop.time() - t0
+        return text
+
+    text = await encode(obj)
+    return text, spent
 
 
 def _json(obj: Any, status_code: int = 200, headers: dict[str, str] | None = None) -> Response:
@@ -180,15 +253,20 @@ def create_app(
         reader = asyncio.create_task(read())
         loop = asyncio.get_running_loop()
         sent_version: int | None = None
-        sent_at = -float("inf")
+        sent_at = -float("inf")  # when the last push began
         try:
             while not closed.is_set():
                 version = source.version()
-                if version != sent_version or loop.time() - sent_at >= push_interval_s:
-                    await websocket.send_text(_dumps(source.snapshot(source.now_s())))
-                    sent_version, sent_at = version, loop.time()
+                since = loop.time() - sent_at
+                changed = version != sent_version and since >= shared.min_gap_s
+                if changed or since >= push_interval_s:
+                    sent_at = loop.time()
+                    sent_version, text = await shared.text(version)
+                    await websocket.send_text(text)
+                # wake up for the next periodic push on time, else look again soon
+                due = sent_at + push_interval_s - loop.time()
                 with contextlib.suppress(TimeoutError):
-                    await asyncio.wait_for(closed.wait(), POLL_INTERVAL_S)
+                    await asyncio.wait_for(closed.wait(), max(0.0, min(POLL_INTERVAL_S, due)))
         except (WebSocketDisconnect, RuntimeError, OSError):
             pass  # the page went away between two pushes
         finally:
@@ -197,7 +275,9 @@ def create_app(
                 await reader
 
     hosts = list(allowed_hosts) if allowed_hosts is not None else ["*"]
-    return Starlette(
+    pushes: deque[Push] = deque(maxlen=PUSH_RECORDS)
+    shared = _SharedSnapshot(source, pushes, push_interval_s)
+    app = Starlette(
         routes=[
             Route("/", page),
             Route("/api/snapshot", snapshot),
@@ -208,6 +288,48 @@ def create_app(
         ],
         middleware=[Middleware(TrustedHostMiddleware, allowed_hosts=hosts)],
     )
+    app.state.pushes = pushes
+    return app
+
+
+class _SharedSnapshot:
+    """The last snapshot as JSON text, shared by every open page (module docstring)."""
+
+    def __init__(
+        self, source: DashboardSource, pushes: deque[Push], push_interval_s: float
+    ) -> None:
+        self.source = source
+        self.pushes = pushes
+        self.push_interval_s = push_interval_s
+        self.lock = asyncio.Lock()
+        self.version: int | None = None
+        self.built_at = -float("inf")
+        self.last = ""
+        #: A changed snapshot waits this long after the previous one [s].
+        self.min_gap_s = POLL_INTERVAL_S
+
+    async def text(self, version: int) -> tuple[int, str]:
+        """``(version, text)`` of a snapshot at least as new as ``version``."""
+        async with self.lock:  # one build at a time; the others reuse it
+            loop = asyncio.get_running_loop()
+            if self.version == version and loop.time() - self.built_at < POLL_INTERVAL_S:
+                return version, self.last
+            version = self.source.version()
+            t0 = loop.time()
+            build = getattr(self.source, "snapshot_async", None)
+            if build is not None:  # a source that yields to the loop while it builds
+                snap = await build(self.source.now_s())
+            else:
+                snap = self.source.snapshot(self.source.now_s())
+            build_s = loop.time() - t0
+            await asyncio.sleep(0)  # the trains' frames go first
+            text, encode_s = await dumps_sliced(snap)
+            self.pushes.append(Push(t0, build_s, encode_s, len(text)))
+            self.version, self.built_at, self.last = version, loop.time(), text
+            cost = build_s + encode_s
+            longest = MAX_GAP_SHARE * self.push_interval_s
+            self.min_gap_s = min(longest, max(POLL_INTERVAL_S, cost / LOOP_SHARE))
+            return version, text
 
 
 def server_config(app: Starlette, *, host: str = DEFAULT_HOST, port: int = 8080) -> uvicorn.Config:
@@ -225,6 +347,10 @@ def server_config(app: Starlette, *, host: str = DEFAULT_HOST, port: int = 8080)
         lifespan="off",
         timeout_graceful_shutdown=5,  # open WebSockets get this long [s] to close
         ws="websockets-sansio",
+        # No permessage-deflate: compressing a 1000-train snapshot (~0.6 MB) takes tens
+        # of ms in the ground's event loop, in one piece; the page is on the dispatch
+        # centre's network (docs/scaling.md).
+        ws_per_message_deflate=False,
     )
 
 

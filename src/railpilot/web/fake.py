@@ -50,6 +50,7 @@ from typing import Any
 
 from railpilot.errors import ConfigError
 from railpilot.ground.occupancy import TrainReport, compute_occupancy
+from railpilot.ground.operations import OperationError, SetTsr, config_error_field, parse_operation
 from railpilot.ground.registry import TrainRegistry
 from railpilot.ground.targets import DeclaredRestriction, TargetPointTracker, restricted_blocks
 from railpilot.ground.tsr_manager import (
@@ -77,7 +78,6 @@ from railpilot.onboard.mrsp import SpeedProfile
 from railpilot.units import kmh_to_mps
 
 from . import view
-from .forms import TsrFormError, form_error, parse_tsr_form
 
 #: The fake ground clock's start: 2026-03-02 06:00:00 UTC [s since the epoch].
 DEFAULT_START_S = 1_772_431_200.0
@@ -512,13 +512,14 @@ class FakeGround:
     def _set_tsr(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
         session = max((t.session for t in self._tsrs.tsrs()), default=0) + 1
         try:
-            tsr = parse_tsr_form(fields, line=self.line, session=session, actor=actor, now_s=now_s)
+            op = parse_operation("tsr_set", fields, line=self.line, now_s=now_s)
+            assert isinstance(op, SetTsr)
+            tsr = op.line_tsr(op.session or session, actor)
             self._carry_out(self._tsrs.set(tsr, now_s))
-        except TsrFormError as exc:
+        except OperationError as exc:
             return {"errors": exc.errors}
-        except ConfigError as exc:  # the manager's own rules (e.g. validity ended)
-            field_name, message = form_error(exc, {})
-            return {"errors": {field_name: message}}
+        except ConfigError as exc:  # the manager's own rules (e.g. a session reused)
+            return {"errors": {config_error_field(exc): str(exc)}}
         return {"ok": self._tsr_view(tsr)}
 
     def cancel_tsr(self, session: int, actor: str, now_s: float) -> dict[str, Any]:

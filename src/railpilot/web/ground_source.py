@@ -1,25 +1,21 @@
-"""The dashboard over the live ground server: :class:`ServerSource` (docs/dashboard.md).
+"""The dashboard over the live ground: :class:`ServerSource` (docs/dashboard.md).
 
-:class:`ServerSource` is a :class:`~railpilot.web.source.DashboardSource` that reads a
-running :class:`~railpilot.net.server.GroundServer`:
+:class:`ServerSource` is a :class:`~railpilot.web.source.DashboardSource` over the ground's
+dispatch application on a running server (:class:`~railpilot.net.dispatch_host.DispatchHost`):
 
-- **trains**: the server's records (registration: number, length) and the last running
-  info (position, speed, direction), fed through ``server.add_listener`` into a
-  :class:`~railpilot.ground.registry.TrainRegistry`, which also counts each train's
-  timeouts, link failures and rejected frames; whether a connection is open is read from
-  the server when a snapshot is taken (a closed connection raises no event);
-- **TSRs**: the dispatcher's, kept by a :class:`~railpilot.ground.tsr_manager.TsrManager`
-  over each registered train's :class:`~railpilot.ground.tsr_manager.TrainRoute` (head
-  and direction from its running info, length from its registration, destination the
-  line's end in its direction), with each train's delivery state read from the server's
+- **trains**: the core's registry (registration, last running info and its validity, link
+  health) and the server's open connections;
+- **blocks and signal aspects**: the core's block occupancy (computed every tick) and the
+  dispatcher's declared restrictions;
+- **TSRs**: the core's line TSRs (set from this page, the admin port or the CLI, or
+  restored from the store), each with every train's delivery state read from the server's
   records (``TsrDelivery.state``);
-- **target points and dispatch commands**: the records' delivery books;
-- **time-distance graph**: a bounded history of reported head positions per train (one
-  sample every :data:`HISTORY_INTERVAL_S`, the last :data:`HISTORY_SAMPLES`).
+- **target points and dispatch commands**: the records' delivery books (a train's newest
+  target id is in force; a clear is no target);
+- **time-distance graph**: the core's bounded history of reported head positions.
 
-Setting a TSR validates the form (:func:`~railpilot.web.forms.parse_tsr_form`), asks the
-manager which trains it concerns and delivers it with ``server.set_tsr``; cancelling goes
-to every train it was delivered to with ``server.cancel_tsr``.
+The form's requests go through ``DispatchHost.execute_now``: the same operation schema and
+validation as the admin port and the CLI (ground/operations.py).
 
 Threading: the server is not thread-safe, so the source must be used on the server's
 event loop thread only; run the dashboard in the same loop (:func:`serve_dashboard`).
@@ -33,42 +29,32 @@ import logging
 import math
 import socket
 import time
-from collections import defaultdict, deque
-from collections.abc import Callable, Generator, Iterable, Mapping
-from typing import Any
+from collections import deque
+from collections.abc import Callable, Generator, Mapping
+from typing import Any, cast
 
 import uvicorn
 
 from railpilot.errors import ConfigError
-from railpilot.ground.occupancy import TrainReport, compute_occupancy
-from railpilot.ground.registry import TrainRegistry, TrainState
-from railpilot.ground.tsr_manager import Action, Cancel, Deliver, LineTsr, TrainRoute, TsrManager
-from railpilot.line.model import DOWN, UP, RailLine
-from railpilot.link import (
-    Event,
-    FrameRejected,
-    LinkFailed,
-    MessageReceived,
-    PeriodicTimedOut,
-    RunningInfo,
-    TrainDeregistered,
-    TrainRegistered,
-    TsrState,
-)
+from railpilot.ground.dispatch import HISTORY_SAMPLES
+from railpilot.ground.operations import OperationError
+from railpilot.ground.registry import TrainState
+from railpilot.ground.targets import restricted_blocks
+from railpilot.ground.tsr_manager import LineTsr
+from railpilot.line.model import DOWN, UP
+from railpilot.link import TsrState
 from railpilot.link.events import AppliedTsr
-from railpilot.link.messages import TravelDirection
-from railpilot.net.server import GroundServer
+from railpilot.link.messages import TargetReason, TravelDirection
+from railpilot.net.dispatch_host import DispatchHost
 from railpilot.onboard.mrsp import SpeedProfile
 
 from . import view
 from .app import DEFAULT_HOST, create_app, server_config
-from .forms import TsrFormError, form_error, parse_tsr_form
 
 log = logging.getLogger("railpilot.web.ground_source")
 
-#: One position sample per train at most this often [s], and how many are kept (an hour).
-HISTORY_INTERVAL_S = 10.0
-HISTORY_SAMPLES = 360
+#: Trains per slice of a snapshot built with :meth:`ServerSource.snapshot_async`.
+SLICE = 100
 #: The time-distance graph: how far back and ahead it shows [s] (as the fake).
 GRAPH_PAST_S = 3600.0
 GRAPH_AHEAD_S = 1200.0
@@ -81,136 +67,30 @@ class ServerSource:
 
     Parameters
     ----------
-    server
-        The ground server (started or not); the source adds a listener to it.
-    line
-        The line the trains run on (km posts, signals, static limits).
+    host
+        The dispatch application on the ground server (net/dispatch_host.py): the page
+        shows what its core decided and the server's delivery books; the form's requests
+        go through it, as the admin port's do.
     clock
         The ground clock [s since the epoch] (the server's own is ``time.time``).
     """
 
-    def __init__(
-        self, server: GroundServer, line: RailLine, *, clock: Callable[[], float] = time.time
-    ) -> None:
-        self.server = server
-        self.line = line
+    def __init__(self, host: DispatchHost, *, clock: Callable[[], float] = time.time) -> None:
+        self.host = host
+        self.server = host.server
+        self.dispatch = host.dispatch
+        self.line = line = host.line
         self._clock = clock
-        timers = server.config.timers
-        self._registry = TrainRegistry(validity_s=timers.cycle_s * timers.timeout_cycles)
         # The train's category is not in its registration: loaded trains (the line's
         # first category) are taken to run UP and empty ones (its last) DOWN, as the fake.
         self._category = {UP: line.categories[0], DOWN: line.categories[-1]}
+        #: each train's history as the page shows it, and the last sample converted [s]
+        self._shown: dict[int, deque[list[float]]] = {}
+        self._shown_until: dict[int, float] = {}
         self._static: dict[TravelDirection, SpeedProfile] = {
             travel: view.static_profile(line, category, travel)
             for travel, category in self._category.items()
         }
-        top_mps = max(float(line.static_limit(c, d)[1].max()) for d, c in self._category.items())
-        self._tsrs = TsrManager(top_speed_mps=top_mps)
-        self._history: dict[int, deque[tuple[float, float]]] = defaultdict(
-            lambda: deque(maxlen=HISTORY_SAMPLES)
-        )
-        self._dirty: set[int] = set()  # trains whose route is to be updated
-        self._update_scheduled = False
-        self._version = 0
-        server.add_listener(self._on_event)
-
-    # ------------------------------------------------------------------ the link's events
-
-    def _on_event(self, train_id: int | None, event: Event, now_s: float) -> None:
-        """Every event of every connection (called by the server, on its loop)."""
-        self._version += 1
-        registry = self._registry
-        if isinstance(event, TrainRegistered):
-            registry.connected(event.train_id)
-            registry.registered(event.train_id, event.request)
-            self._route_changed(event.train_id)
-        elif isinstance(event, TrainDeregistered):
-            registry.deregistered(event.train_id)
-            self._tsrs.forget(event.train_id)
-        elif train_id is None:
-            return
-        elif isinstance(event, MessageReceived) and isinstance(event.message, RunningInfo):
-            registry.running_info(train_id, event.message, now_s)
-            history = self._history[train_id]
-            if not history or now_s - history[-1][0] >= HISTORY_INTERVAL_S:
-                history.append((now_s, event.message.position_m))
-            self._route_changed(train_id)
-        elif isinstance(event, PeriodicTimedOut):
-            registry.timed_out(train_id)
-        elif isinstance(event, LinkFailed):
-            registry.link_failed(train_id)
-        elif isinstance(event, FrameRejected):
-            registry.rejected(train_id, event.check)
-
-    def _route_changed(self, train_id: int) -> None:
-        """Update the train's route soon: not from inside the server's event handling, since
-        a delivery it causes re-enters the connection that is reporting the event."""
-        self._dirty.add(train_id)
-        if self._update_scheduled:
-            return
-        try:
-            loop = asyncio.get_running_loop()
-        except RuntimeError:  # no loop (a unit test feeding events): at once
-            self._update_routes()
-            return
-        self._update_scheduled = True
-        loop.call_soon(self._update_routes)
-
-    def _update_routes(self) -> None:
-        self._update_scheduled = False
-        dirty, self._dirty = self._dirty, set()
-        now = self._clock()
-        actions: list[Action] = []
-        for train_id in sorted(dirty):
-            route = self._route(train_id)
-            if route is not None:
-                actions += self._tsrs.update_route(route, now)
-        actions += self._tsrs.tick(now)
-        self._carry_out(actions, "ground")
-
-    def _route(self, train_id: int) -> TrainRoute | None:
-        """Where a registered train reporting its position is and goes (None: unknown)."""
-        record = self.server.records.get(train_id)
-        held = None if record is None else record.running_info.message
-        if record is None or not record.registered or record.registration is None:
-            return None
-        if not isinstance(held, RunningInfo) or held.direction not in (UP, DOWN):
-            return None
-        destination = self.line.end_m if held.direction is UP else self.line.start_m
-        try:
-            return TrainRoute(
-                train_id,
-                held.direction,
-                held.position_m,
-                record.registration.train_length_m,
-                destination,
-            )
-        except ConfigError as exc:  # a position off the km posts a route may have
-            log.warning("train %s: no route: %s", train_id, exc)
-            return None
-
-    def _carry_out(self, actions: Iterable[Action], actor: str) -> None:
-        """Deliver what the manager decided through the server (one call per TSR)."""
-        deliver: dict[int, tuple[LineTsr, list[int]]] = {}
-        cancel: dict[int, list[int]] = defaultdict(list)
-        for action in actions:
-            if isinstance(action, Deliver):
-                deliver.setdefault(action.tsr.session, (action.tsr, []))[1].append(action.train_id)
-            elif isinstance(action, Cancel):
-                cancel[action.session].append(action.train_id)
-            # Withdraw: nothing is sent; each train drops the TSR by its own clock.
-        results: dict[int, str] = {}
-        for tsr, train_ids in deliver.values():
-            results |= self.server.set_tsr(
-                train_ids, tsr.message, actor=tsr.set_by or actor, reason=tsr.reason
-            )
-        for session, train_ids in cancel.items():
-            results |= self.server.cancel_tsr(train_ids, session, actor=actor)
-        for train_id, outcome in sorted(results.items()):
-            if outcome.startswith("error"):
-                log.warning("train %s: %s", train_id, outcome)
-        if results:
-            self._version += 1
 
     # ------------------------------------------------------------------ DashboardSource
 
@@ -218,80 +98,77 @@ class ServerSource:
         return float(self._clock())
 
     def version(self) -> int:
-        return self._version
+        return self.dispatch.version
 
     def set_tsr(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
-        if self._dirty:
-            self._update_routes()  # every train where it last said it was
         try:
-            tsr = parse_tsr_form(
-                fields, line=self.line, session=self._next_session(), actor=actor, now_s=now_s
-            )
-            actions = self._tsrs.set(tsr, now_s)
-        except TsrFormError as exc:
+            result = self.host.execute_now("tsr_set", fields, actor)
+        except OperationError as exc:
             return {"errors": exc.errors}
-        except ConfigError as exc:  # the manager's own rules
-            field_name, message = form_error(exc, {})
-            return {"errors": {field_name: message}}
-        self._carry_out(actions, actor)
-        self._version += 1
+        tsr = next(t for t in self.dispatch.tsrs.tsrs() if t.session == result["session"])
         return {"ok": self._tsr_view(tsr)}
 
     def cancel_tsr(self, session: int, actor: str, now_s: float) -> dict[str, Any]:
-        tsr = next((t for t in self._tsrs.tsrs() if t.session == session), None)
+        tsr = next((t for t in self.dispatch.tsrs.tsrs() if t.session == session), None)
         if tsr is None:
-            known = ", ".join(str(t.session) for t in self._tsrs.tsrs()) or "none"
+            known = ", ".join(str(t.session) for t in self.dispatch.tsrs.tsrs()) or "none"
             return {"errors": {"session": f"{session} is not a TSR that was set ({known})"}}
-        self._carry_out(self._tsrs.cancel(session, now_s), actor)
-        self._version += 1
+        try:
+            self.host.execute_now("tsr_cancel", {"session": session}, actor)
+        except OperationError as exc:
+            return {"errors": exc.errors}
         return {"ok": self._tsr_view(tsr)}
-
-    def _next_session(self) -> int:
-        """One above every session the manager or any train's record holds (a TSR set over
-        the admin port, or restored from the store, keeps its number)."""
-        used = [t.session for t in self._tsrs.tsrs()]
-        used += [s for record in self.server.records.values() for s in record.tsrs]
-        return max(used, default=0) + 1
 
     # ------------------------------------------------------------------ the snapshot
 
-    def _sync(self, now_s: float) -> None:
-        """What raises no event: open connections, and records restored from the store."""
-        open_now = self.server.open_connections()
-        for train_id, record in self.server.records.items():
-            if record.registration is not None and train_id not in self._registry.train_ids():
-                self._registry.registered(train_id, record.registration)
-                if not record.registered:
-                    self._registry.deregistered(train_id)
-        for train_id in self._registry.train_ids():
-            if train_id in open_now:
-                self._registry.connected(train_id)
-            else:
-                self._registry.disconnected(train_id)
-        self._carry_out(self._tsrs.tick(now_s), "ground")
-
     def snapshot(self, now_s: float) -> dict[str, Any]:
-        self._sync(now_s)
-        states = {s.train_id: s for s in self._registry.states(now_s)}
-        reports = [
-            TrainReport.from_running_info(
-                s.train_id, s.running_info, s.length_m, now_s - (s.info_age_s or 0.0)
-            )
-            for s in states.values()
-            if s.registered and s.running_info is not None and s.length_m is not None
-        ]
-        occupancy = compute_occupancy(self.line, reports, now_s)
-        restricted: dict[str, Any] = {}  # the server holds no declared restrictions yet
+        """The whole picture at ``now_s`` (DashboardSource), built in one go."""
+        build = self._build(now_s)
+        while True:
+            try:
+                next(build)
+            except StopIteration as done:
+                return cast(dict[str, Any], done.value)
+
+    async def snapshot_async(self, now_s: float) -> dict[str, Any]:
+        """:meth:`snapshot`, yielding to the event loop every :data:`SLICE` trains: at a
+        thousand trains a snapshot costs tens of ms, and the trains' frames, which share
+        this loop, wait for one slice instead of the whole."""
+        build = self._build(now_s)
+        while True:
+            try:
+                next(build)
+            except StopIteration as done:
+                return cast(dict[str, Any], done.value)
+            await asyncio.sleep(0)
+
+    def _build(self, now_s: float) -> Generator[None, None, dict[str, Any]]:
+        """The snapshot; yields where a caller may let the loop run."""
+        self.host.sync()
+        registry = self.dispatch.registry
+        states = {s.train_id: s for s in registry.states(now_s)}
+        # The last tick's (at most a tick old) rather than a new one per push: it is what
+        # the target points were computed from, and it costs tens of ms at 1000 trains.
+        occupancy = self.dispatch.occupancy
+        if occupancy is None or now_s - occupancy.now_s > self.host.tick_s:
+            occupancy = self.dispatch.compute_occupancy(now_s)
+        restricted = restricted_blocks(self.line, self.dispatch.restrictions.values())
         aspects = view.signal_aspects(self.line, occupancy, restricted)
-        trains = [self._train_view(s, now_s) for s in states.values()]
+        yield
+        trains: list[dict[str, Any]] = []
+        for k, state in enumerate(states.values(), 1):
+            trains.append(self._train_view(state, now_s))
+            if k % SLICE == 0:
+                yield
         numbers = {t["id"]: t["number"] for t in trains}
+        graph = yield from self._graph(states, numbers, now_s)
         return {
             "now_s": now_s,
-            "version": self._version,
+            "version": self.dispatch.version,
             "line": view.line_view(self.line, aspects),
             "blocks": view.blocks_view(self.line, occupancy, restricted),
             "trains": trains,
-            "tsrs": [self._tsr_view(t, numbers) for t in self._tsrs.tsrs()],
+            "tsrs": [self._tsr_view(t, numbers) for t in self.dispatch.tsrs.tsrs()],
             "dispatch": [
                 {
                     "command": number,
@@ -303,7 +180,7 @@ class ServerSource:
                 for train_id, record in sorted(self.server.records.items())
                 for number, delivery in sorted(record.dispatch_commands.items())
             ],
-            "graph": self._graph(states, numbers, now_s),
+            "graph": graph,
             "alarms": view.alarms_view(trains),
         }
 
@@ -337,7 +214,8 @@ class ServerSource:
         ]
 
     def _target(self, state: TrainState) -> dict[str, Any] | None:
-        """The train's latest target point, as ``view.target_view`` shows one."""
+        """The train's target point in force (its newest id), as ``view.target_view``
+        shows one; a clear (the line's end, reason OTHER) is no target."""
         record = self.server.records.get(state.train_id)
         if record is None or not record.target_points:
             return None
@@ -345,14 +223,23 @@ class ServerSource:
         delivery = record.target_points[target_id]
         message = delivery.message
         position = float(getattr(message, "position_m", math.nan))
-        signal = next((s.id for s in self.line.signals if abs(s.position_m - position) < 1.0), None)
         reason = getattr(message, "reason", None)
+        if reason is TargetReason.OTHER and position in (self.line.start_m, self.line.end_m):
+            return None
+        computed = self.dispatch.targets.current(state.train_id)
+        ours = (
+            computed is not None
+            and self.dispatch.targets.current_target_id(state.train_id) == target_id
+        )
+        info = state.running_info
+        travel = info.direction if info is not None and info.direction in (UP, DOWN) else UP
+        signal = self.line.signal_near(position, travel)
         return {
             "id": target_id,
             "km": view.km(position),
             "reason": getattr(reason, "name", str(reason)),
             "signal": signal,
-            "block": None,
+            "block": computed.block_id if ours and computed is not None else None,
             "state": delivery.state.name,
         }
 
@@ -364,7 +251,7 @@ class ServerSource:
         }
         if numbers is None:
             numbers = self._numbers()
-        return view.tsr_view(tsr, self._tsrs.state(tsr.session), deliveries, numbers)
+        return view.tsr_view(tsr, self.dispatch.tsrs.state(tsr.session), deliveries, numbers)
 
     def _numbers(self) -> dict[int, str]:
         return {
@@ -375,26 +262,46 @@ class ServerSource:
 
     def _graph(
         self, states: Mapping[int, TrainState], numbers: Mapping[int, str], now_s: float
-    ) -> dict[str, Any]:
+    ) -> Generator[None, None, dict[str, Any]]:
         start, end = now_s - GRAPH_PAST_S, now_s + GRAPH_AHEAD_S
         trains = []
-        for train_id, state in states.items():
+        for k, (train_id, state) in enumerate(states.items(), 1):
             info = state.running_info
-            samples = [(t, x) for t, x in self._history.get(train_id, ()) if t >= start]
+            actual = [p for p in self._actual(train_id) if p[0] >= start]
             if info is not None and state.info_age_s is not None:  # the latest report too
                 at = now_s - state.info_age_s
-                if not samples or samples[-1][0] < at:
-                    samples.append((at, info.position_m))
+                if not actual or actual[-1][0] < round(at):
+                    actual.append([round(at), view.km(info.position_m)])
             trains.append(
                 {
                     "id": train_id,
                     "number": numbers.get(train_id, str(train_id)),
                     "direction": "unknown" if info is None else view.direction(info.direction),
-                    "plan": [],  # the server holds no timetable yet
-                    "actual": [[round(t), view.km(x)] for t, x in samples],
+                    "plan": [],  # the live ground holds no timetable yet
+                    "actual": actual,
                 }
             )
+            if k % SLICE == 0:
+                yield
         return {"from_s": start, "to_s": end, "trains": trains}
+
+    def _actual(self, train_id: int) -> deque[list[float]]:
+        """The train's history in the page's units, each sample converted once (the core
+        keeps up to an hour of samples per train, in time order)."""
+        shown = self._shown.get(train_id)
+        if shown is None:
+            shown = self._shown[train_id] = deque(maxlen=HISTORY_SAMPLES)
+        last = self._shown_until.get(train_id, -math.inf)
+        new: list[tuple[float, float]] = []
+        for t, x in reversed(self.dispatch.history.get(train_id, ())):
+            if t <= last:
+                break
+            new.append((t, x))
+        for t, x in reversed(new):
+            shown.append([round(t), view.km(x)])
+        if new:
+            self._shown_until[train_id] = new[0][0]
+        return shown
 
     # ------------------------------------------------------------------ for tests and tools
 
@@ -406,7 +313,7 @@ class ServerSource:
 
     def concerned(self, session: int) -> tuple[int, ...]:
         """The trains TSR ``session`` was delivered to."""
-        return self._tsrs.delivered_to(session)
+        return self.dispatch.tsrs.delivered_to(session)
 
 
 # ---------------------------------------------------------------------------- serving

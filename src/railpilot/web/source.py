@@ -41,9 +41,10 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Protocol, runtime_checkable
 
-#: The TSR form's fields, as the page posts them (strings or numbers). They mirror
-#: :class:`railpilot.ground.tsr_manager.LineTsr` in the dispatcher's units: km posts [km],
-#: the limit [km/h] and the validity window in minutes from now.
+#: The TSR form's fields, as the page posts them (strings or numbers): those of the
+#: ground's ``tsr_set`` operation (ground/operations.py, one schema for the page, the admin
+#: port and the CLI) in the dispatcher's units: km posts [km], the limit [km/h] and the
+#: validity window in minutes from now.
 TSR_FORM_FIELDS = (
     "start_km",
     "end_km",

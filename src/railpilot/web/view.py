@@ -9,6 +9,8 @@ anything the ground does not: the one rule of its own is the signal aspect the p
 
 from __future__ import annotations
 
+import bisect
+import functools
 import math
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -131,12 +133,63 @@ def mrsp_at(
 ) -> float:
     """The train's most restrictive speed [m/s] at its head ``head_m`` [m] at ``now_s``.
 
-    The onboard's own MRSP (onboard/mrsp.py) over the static limit and the TSRs the train
-    has confirmed (``applied``, each extended by the train's length); target points are
-    left out (the page shows them apart).
+    The onboard's own MRSP (onboard/mrsp.py, :func:`most_restrictive_profile`) over the
+    static limit and the TSRs the train has confirmed (``applied``, each extended by the
+    train's length), read at one point; target points are left out (the page shows them
+    apart).
+
+    Notes
+    -----
+    Read at one point the MRSP is the lowest of: the static limit there (the stricter side
+    exactly at an edge, 0 outside the line: :meth:`SpeedProfile.at`) and the limit of
+    every TSR in force (:func:`tsr_in_force`) whose closed zone holds the point. This is
+    that, without building the whole profile: the snapshot asks it of every train, and
+    building 1,000 profiles took ~0.25 s of the ground's event loop per snapshot
+    (docs/scaling.md). :func:`mrsp_at_full` is the reference it is tested against. (The
+    full profile also refuses two different TSRs under one session; the server's records
+    hold one per session.)
     """
+    if travel not in (TravelDirection.UP, TravelDirection.DOWN) or not math.isfinite(head_m):
+        # what the full profile refuses (UNKNOWN, NaN), refused the same way
+        return mrsp_at_full(static, applied, travel, head_m, now_s)
+    speed = _static_at(static, head_m)
+    for tsr in applied:
+        if (
+            tsr.valid_from_s <= now_s < tsr.valid_until_s
+            and tsr.zone_start_m <= head_m <= tsr.zone_end_m
+        ):
+            speed = min(speed, tsr.limit_mps)
+    return speed
+
+
+def mrsp_at_full(
+    static: SpeedProfile,
+    applied: Iterable[AppliedTsr],
+    travel: TravelDirection,
+    head_m: float,
+    now_s: float,
+) -> float:
+    """:func:`mrsp_at` by building the whole MRSP (slow; the reference for the tests)."""
     profile = most_restrictive_profile(static, applied, (), direction=travel, now_s=now_s)
     return float(profile.at(head_m)[()])
+
+
+@functools.lru_cache(maxsize=32)
+def _steps(static: SpeedProfile) -> tuple[list[float], list[float]]:
+    """A profile's edges and speeds as Python lists (a point lookup without numpy)."""
+    return static.edges_m.tolist(), static.speeds_mps.tolist()
+
+
+def _static_at(static: SpeedProfile, x: float) -> float:
+    """:meth:`SpeedProfile.at` at one finite point: the piece's speed, the lower side at an
+    edge, 0 outside and at the two ends."""
+    edges, speeds = _steps(static)
+    if not edges[0] < x < edges[-1]:
+        return 0.0
+    i = bisect.bisect_right(edges, x) - 1  # x in [edges[i], edges[i+1]), 0 <= i < n
+    if x == edges[i]:  # an inner edge: the stricter side
+        return min(speeds[i - 1], speeds[i])
+    return speeds[i]
 
 
 def train_alarms(state: TrainState, mrsp_mps: float | None) -> list[str]:

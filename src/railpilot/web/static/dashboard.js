@@ -8,11 +8,21 @@ const SVGNS = "http://www.w3.org/2000/svg";
 const TOKEN_KEY = "railpilot.dispatcherToken";
 const FIELDS = ["start_km", "end_km", "limit_kmh", "valid_from_min", "valid_until_min", "reason"];
 const STALE_AFTER_S = 3; // no push for this long: say so
+const MAX_ALARMS_SHOWN = 100; // alarms listed one by one; the rest are counted
+const LABEL_CHAR_PX = 6.6; // width of a character of a train's label on the line diagram
 
 let latest = null; // the last snapshot
 let lastMessageAt = 0; // performance.now() of the last snapshot [ms]
 let armedCancel = null; // the TSR session whose "Cancel" asks for confirmation
 let staticKey = null; // which line the diagram's static layer was drawn for
+
+// What the page drew, for load tests and tools (railpilot link loadtest --dashboard reads
+// it): renders so far and, for the last PROBE_KEEP, when each snapshot was drawn
+// [ms since the epoch], how long render() took [ms], how long until the next frame was
+// painted [ms] and the snapshot's version. Nothing on the page reads it.
+const PROBE_KEEP = 10000;
+const probe = { renders: 0, at: [], renderMs: [], paintMs: [], versions: [] };
+window.railpilot = probe;
 
 // ------------------------------------------------------------------ small DOM helpers
 
@@ -49,12 +59,65 @@ function hhmmss(t) { return new Date(t * 1000).toISOString().slice(11, 19); }
 function hhmm(t) { return new Date(t * 1000).toISOString().slice(11, 16); }
 function fmt(x, digits) { return x === null || x === undefined ? "–" : Number(x).toFixed(digits); }
 
+// against plan, as a cell's content (see "keyed tables")
 function minutes(seconds) {
-  if (seconds === null || seconds === undefined) return h("span", { class: "muted" }, "–");
+  if (seconds === null || seconds === undefined) return ["span", { class: "muted" }, "–"];
   const m = Math.round(seconds / 60);
-  if (m === 0) return h("span", { class: "early" }, "on time");
-  return m > 0 ? h("span", { class: "late" }, `+${m} min late`)
-    : h("span", { class: "early" }, `${-m} min early`);
+  if (m === 0) return ["span", { class: "early" }, "on time"];
+  return m > 0 ? ["span", { class: "late" }, `+${m} min late`]
+    : ["span", { class: "early" }, `${-m} min early`];
+}
+
+// ------------------------------------------------------------------ keyed tables
+// The tables with a row per train are updated in place: each row is kept by its key and a
+// cell is rebuilt only when what it shows changed. A snapshot of 1,000 trains then changes
+// a few thousand text nodes instead of building 15,000 new elements every second (and the
+// browser lays out only what changed). A cell is described as data, [attrs, ...children],
+// a child being text or [tag, attrs, ...children], so "changed" is a string comparison.
+
+function build(child) {
+  if (!Array.isArray(child)) return child;
+  const [tag, attrs, ...children] = child;
+  return h(tag, attrs, ...children.map(build));
+}
+
+function resetAttrs(node, attrs) {
+  for (const name of node.getAttributeNames()) node.removeAttribute(name);
+  setAttrs(node, attrs);
+}
+
+// rows: [{ key, attrs, cells: [[attrs, ...children], ...] }]; empty: the row shown when none
+function syncTable(table, rows, empty) {
+  const body = table.tBodies[0];
+  const kept = table.railpilotRows || (table.railpilotRows = new Map());
+  const order = [];
+  const seen = new Set();
+  for (const row of rows) {
+    let entry = kept.get(row.key);
+    if (!entry) {
+      entry = { tr: document.createElement("tr"), attrs: null, cells: [] };
+      kept.set(row.key, entry);
+    }
+    const attrs = JSON.stringify(row.attrs);
+    if (attrs !== entry.attrs) { resetAttrs(entry.tr, row.attrs); entry.attrs = attrs; }
+    row.cells.forEach((cell, i) => {
+      const sig = JSON.stringify(cell);
+      if (entry.cells[i] === sig) return;
+      const td = entry.tr.children[i] || entry.tr.appendChild(document.createElement("td"));
+      const [cellAttrs, ...children] = cell;
+      resetAttrs(td, cellAttrs);
+      td.replaceChildren(...kids(children.map(build)));
+      entry.cells[i] = sig;
+    });
+    seen.add(row.key);
+    order.push(entry.tr);
+  }
+  for (const key of [...kept.keys()]) if (!seen.has(key)) kept.delete(key);
+  if (!order.length) order.push(empty);
+  const now = body.children;
+  let same = now.length === order.length;
+  for (let i = 0; same && i < order.length; i++) same = now[i] === order[i];
+  if (!same) body.replaceChildren(...order);
 }
 
 // ------------------------------------------------------------------ token
@@ -272,6 +335,7 @@ function drawLine(snap) {
         s("title", {}, `TSR ${tsr.session}: ${tsr.reason}`)));
     }
   }
+  const labels = []; // drawn after the trains, where there is room (see placeLabels)
   for (const train of snap.trains) {
     if (!train.registered || train.km === null || train.direction === "unknown") continue;
     const up = train.direction === "up";
@@ -302,16 +366,39 @@ function drawLine(snap) {
         const tip = headIn ? 7 : 0;
         d = `M${xb} ${y - 5} L${xa + tip} ${y - 5} L${xa} ${y} L${xa + tip} ${y + 5} L${xb} ${y + 5} Z`;
       }
-      const label = `${train.number} · ${fmt(train.speed_kmh, 0)} km/h ${up ? "▶" : "◀"}` +
-        (train.alarms.length ? " ⚠" : "") + (train.valid ? "" : ` ${fmt(train.info_age_s, 0)} s old`);
-      layer.append(s("g", { class: trainClass(train), "data-train": train.id },
+      const group = s("g", { class: trainClass(train), "data-train": train.id },
         s("path", { d }),
-        headIn ? s("text", { x: (xa + xb) / 2, y: row.y + (up ? Y.upLabel : Y.downLabel) }, label) : null,
         s("title", {}, `${train.number} (id ${train.id}) km ${fmt(train.km, 3)}, ` +
-          `${fmt(train.speed_kmh, 1)} km/h, MRSP ${fmt(train.mrsp_kmh, 1)} km/h`)));
+          `${fmt(train.speed_kmh, 1)} km/h, MRSP ${fmt(train.mrsp_kmh, 1)} km/h`));
+      layer.append(group);
+      if (headIn) {
+        const text = `${train.number} · ${fmt(train.speed_kmh, 0)} km/h ${up ? "▶" : "◀"}` +
+          (train.alarms.length ? " ⚠" : "") + (train.valid ? "" : ` ${fmt(train.info_age_s, 0)} s old`);
+        labels.push({ group, text, x: (xa + xb) / 2, y: row.y + (up ? Y.upLabel : Y.downLabel),
+          alarm: train.alarms.length > 0 });
+      }
     }
   }
+  placeLabels(labels);
   $("line-dynamic").replaceChildren(layer);
+}
+
+// A train's label goes above (UP) or below (DOWN) its track where it does not cover another
+// label: trains in alarm first, then along the line. A train without room shows no label
+// (its tooltip and the trains table still name it): with hundreds of trains on the line
+// the labels would otherwise be unreadable over each other.
+function placeLabels(labels) {
+  const taken = new Map(); // label row y -> [[x0, x1], ...] taken
+  labels.sort((a, b) => (b.alarm - a.alarm) || (a.x - b.x));
+  for (const label of labels) {
+    const half = label.text.length * LABEL_CHAR_PX / 2 + 3;
+    const span = [label.x - half, label.x + half];
+    const row = taken.get(label.y) || [];
+    if (row.some(([a, b]) => span[0] < b && a < span[1])) continue;
+    row.push(span);
+    taken.set(label.y, row);
+    label.group.append(s("text", { x: label.x, y: label.y }, label.text));
+  }
 }
 
 // ------------------------------------------------------------------ time-distance graph
@@ -397,40 +484,44 @@ function drawTrains(snap) {
   const rows = snap.trains.map((t) => {
     const rejections = Object.entries(t.link.rejections).map(([check, n]) => `${check} ${n}`).join(" · ");
     const link = t.link.connected
-      ? h("span", { class: "ok" }, "up")
-      : h("span", { class: "bad" }, t.link.failures ? `failed (${t.link.failures})` : "down");
+      ? ["span", { class: "ok" }, "up"]
+      : ["span", { class: "bad" }, t.link.failures ? `failed (${t.link.failures})` : "down"];
     const report = t.info_age_s === null ? "–"
-      : h("span", { class: t.valid ? "" : "bad" }, `${fmt(t.info_age_s, 0)} s ago`);
+      : ["span", { class: t.valid ? "" : "bad" }, `${fmt(t.info_age_s, 0)} s ago`];
     const target = t.target
       ? `${t.target.signal || "line end"} km ${fmt(t.target.km, 3)} (${t.target.reason})` : "";
     const classes = [t.alarms.length ? "alarm" : "", t.registered ? "" : "gone"].join(" ").trim();
-    return h("tr", { class: classes, "data-train": t.id },
-      h("td", {}, h("b", {}, t.number), " ", h("small", {}, `id ${t.id}`),
-        t.registered ? null : h("small", {}, " (left the line)")),
-      h("td", { class: `dir-${t.direction}` }, t.direction === "up" ? "UP ▶" : t.direction === "down" ? "◀ DOWN" : "?"),
-      h("td", { class: "num" }, fmt(t.km, 3)),
-      h("td", { class: `num ${t.alarms.includes("overspeed") ? "bad" : ""}` }, `${fmt(t.speed_kmh, 0)} km/h`),
-      h("td", { class: "num" }, `${fmt(t.mrsp_kmh, 0)} km/h`),
-      h("td", { class: "num" }, minutes(t.deviation_s)),
-      h("td", { class: "num" }, report),
-      h("td", {}, link),
-      h("td", { class: "num" }, t.link.timeouts),
-      h("td", {}, rejections || h("span", { class: "muted" }, "none")),
-      h("td", {}, target),
-      h("td", { class: "bad" }, t.alarms.length ? `⚠ ${t.alarms.join(", ")}` : ""));
+    return { key: t.id, attrs: { class: classes, "data-train": t.id }, cells: [
+      [{}, ["b", {}, t.number], " ", ["small", {}, `id ${t.id}`],
+        t.registered ? null : ["small", {}, " (left the line)"]],
+      [{ class: `dir-${t.direction}` }, t.direction === "up" ? "UP ▶" : t.direction === "down" ? "◀ DOWN" : "?"],
+      [{ class: "num" }, fmt(t.km, 3)],
+      [{ class: `num ${t.alarms.includes("overspeed") ? "bad" : ""}` }, `${fmt(t.speed_kmh, 0)} km/h`],
+      [{ class: "num" }, `${fmt(t.mrsp_kmh, 0)} km/h`],
+      [{ class: "num" }, minutes(t.deviation_s)],
+      [{ class: "num" }, report],
+      [{}, link],
+      [{ class: "num" }, t.link.timeouts],
+      [{}, rejections || ["span", { class: "muted" }, "none"]],
+      [{}, target],
+      [{ class: "bad" }, t.alarms.length ? `⚠ ${t.alarms.join(", ")}` : ""],
+    ] };
   });
-  $("trains").tBodies[0].replaceChildren(...rows);
+  syncTable($("trains"), rows, h("tr", {}, h("td", { colspan: 12, class: "muted" }, "no train")));
 }
 
 function drawDispatch(snap) {
-  const targets = snap.trains.filter((t) => t.target).map((t) => h("tr", { "data-train": t.id },
-    h("td", {}, h("b", {}, t.number)),
-    h("td", {}, t.target.signal || "line end"),
-    h("td", { class: "num" }, fmt(t.target.km, 3)),
-    h("td", {}, t.target.reason),
-    h("td", {}, t.target.state ? h("span", { class: `chip state-${t.target.state}` }, t.target.state) : "–")));
-  if (!targets.length) targets.push(h("tr", {}, h("td", { colspan: 5, class: "muted" }, "no train held by a red signal")));
-  $("targets").tBodies[0].replaceChildren(...targets);
+  const targets = snap.trains.filter((t) => t.target).map((t) => ({
+    key: t.id, attrs: { "data-train": t.id }, cells: [
+      [{}, ["b", {}, t.number]],
+      [{}, t.target.signal || "line end"],
+      [{ class: "num" }, fmt(t.target.km, 3)],
+      [{}, t.target.reason],
+      [{}, t.target.state ? ["span", { class: `chip state-${t.target.state}` }, t.target.state] : "–"],
+    ],
+  }));
+  syncTable($("targets"), targets,
+    h("tr", {}, h("td", { colspan: 5, class: "muted" }, "no train held by a red signal")));
   const commands = snap.dispatch.slice().reverse().map((c) => h("tr", { "data-command": c.command },
     h("td", { class: "num" }, c.command),
     h("td", {}, h("b", {}, c.number)),
@@ -441,8 +532,11 @@ function drawDispatch(snap) {
 }
 
 function drawAlarms(snap) {
-  const items = snap.alarms.map((a) => h("li", { "data-alarm": a.kind, "data-train": a.train },
+  // a mass outage (hundreds of trains) lists the first MAX_ALARMS_SHOWN and counts the rest
+  const items = snap.alarms.slice(0, MAX_ALARMS_SHOWN).map((a) => h("li", { "data-alarm": a.kind, "data-train": a.train },
     h("b", {}, `${a.kind === "link" ? "LINK" : "OVERSPEED"} ${a.number}`), a.text));
+  const more = snap.alarms.length - items.length;
+  if (more > 0) items.push(h("li", { class: "more" }, `and ${more} more (the trains table shows every train)`));
   if (!items.length) items.push(h("li", { class: "none" }, "no alarm"));
   $("alarms").replaceChildren(...items);
   $("alarm-count").textContent = snap.alarms.length;
@@ -474,7 +568,23 @@ function receive(snap) {
   latest = snap;
   lastMessageAt = performance.now();
   document.body.dataset.version = snap.version;
+  const t0 = performance.now();
   render();
+  const t1 = performance.now();
+  if (probe.at.length >= PROBE_KEEP) {
+    for (const list of [probe.at, probe.renderMs, probe.paintMs, probe.versions]) list.shift();
+  }
+  probe.renders += 1;
+  probe.at.push(performance.timeOrigin + t0);
+  probe.renderMs.push(t1 - t0);
+  probe.versions.push(snap.version);
+  const i = probe.paintMs.push(null) - 1;
+  const base = probe.renders - probe.at.length; // entries dropped so far
+  // the frame after this one has been laid out and painted: style, layout and paint included
+  requestAnimationFrame(() => setTimeout(() => {
+    const j = i - (probe.renders - probe.at.length - base);
+    if (j >= 0) probe.paintMs[j] = performance.now() - t0;
+  }, 0));
 }
 
 function setStatus(live, text) {

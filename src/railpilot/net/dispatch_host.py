@@ -1,0 +1,310 @@
+"""The ground dispatch application on the live server: :class:`DispatchHost`.
+
+A thin adapter (DESIGN habit 2) between a :class:`~railpilot.net.server.GroundServer` and a
+:class:`~railpilot.ground.dispatch.GroundDispatch`:
+
+- every event of every connection goes to the core (``server.add_listener``);
+- the core's clock ticks every :data:`TICK_S` (TSR expiry, target points from occupancy);
+- the commands the core returns are carried out through the server's delivery methods
+  (which commit to the store before any frame leaves), never from inside the server's own
+  event handling: a delivery re-enters the connection that is reporting the event;
+- a dispatcher's request (admin port, HTTP, CLI: one schema, ground/operations.py) is
+  parsed once, carried out by the core, and its deliveries sent in batches so a broadcast
+  to a thousand trains does not hold up the receive path;
+- at start, after the server has restored its records, the core takes back the TSRs,
+  target-point ids, command numbers and declared restrictions from the store.
+
+Declared restrictions live in the store's audit log (``restriction_set`` and
+``restriction_clear`` entries, written before their target points leave) and are replayed
+from it at start.
+
+Threading: everything runs on the server's event loop thread.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+from railpilot.ground.dispatch import (
+    CancelTsrOn,
+    Command,
+    DeliverTsr,
+    GroundDispatch,
+    Outcome,
+    SendTargetPoint,
+    restriction_from_view,
+    restriction_view,
+)
+from railpilot.ground.operations import (
+    ClearRestriction,
+    OperationError,
+    SetRestriction,
+    Status,
+    parse_operation,
+)
+from railpilot.ground.store import StoreError
+from railpilot.ground.targets import DeclaredRestriction
+from railpilot.line.model import RailLine
+from railpilot.link import Event
+
+from .logfmt import kv
+from .server import GroundServer
+
+log = logging.getLogger("railpilot.net.dispatch_host")
+
+#: How often the core's clock ticks [s] (target points follow occupancy this fast).
+TICK_S = 1.0
+#: Deliveries per batch when an operation reaches many trains.
+BATCH = 50
+
+
+class DispatchHost:
+    """The dispatch core on a live server (module docstring).
+
+    ``clock``: the ground clock [s since the epoch], the server's own by default.
+    """
+
+    def __init__(
+        self,
+        server: GroundServer,
+        line: RailLine,
+        *,
+        clock: Callable[[], float] = time.time,
+        tick_s: float = TICK_S,
+    ) -> None:
+        timers = server.config.timers
+        self.server = server
+        self.line = line
+        self.dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        self._clock = clock
+        self.tick_s = tick_s
+        self._queued: list[Command] = []
+        self._flush_scheduled = False
+        self._ticker: asyncio.TimerHandle | None = None
+        self._started = False
+        self._tasks: set[asyncio.Task[dict[int, str]]] = set()
+        server.add_listener(self._on_event)
+
+    # ------------------------------------------------------------------ lifecycle
+
+    def start(self) -> None:
+        """Restore from the store and start ticking (call after ``server.start()``, on
+        its loop)."""
+        if self._started:
+            return
+        self._started = True
+        store = self.server.store
+        if store is not None:
+            restrictions: dict[int, DeclaredRestriction] = {}
+            for entry in store.audit_log():
+                if entry.action == "restriction_set":
+                    restrictions[int(entry.detail["id"])] = restriction_from_view(entry.detail)
+                elif entry.action == "restriction_clear":
+                    restrictions.pop(int(entry.detail["id"]), None)
+            self.dispatch.restore(store.load(), self._clock(), restrictions)
+            kv(
+                log,
+                logging.INFO,
+                "dispatch_restored",
+                tsrs=len(self.dispatch.tsrs.tsrs()),
+                restrictions=len(restrictions),
+            )
+        self._schedule_tick()
+
+    def stop(self) -> None:
+        """Stop ticking. Target points still waiting for their batch are dropped: they are
+        not in the store, so a restarted ground resumes from what the trains were sent and
+        sends each what holds then."""
+        if self._ticker is not None:
+            self._ticker.cancel()
+            self._ticker = None
+        for task in self._tasks:
+            task.cancel()
+        self._started = False
+
+    def _schedule_tick(self) -> None:
+        loop = asyncio.get_running_loop()
+        self._ticker = loop.call_later(self.tick_s, self._on_tick)
+
+    def _on_tick(self) -> None:
+        # In two halves, each its own turn of the loop, and the target points sent in
+        # batches: at a thousand trains each half costs ~10-20 ms, and the trains' frames
+        # wait for one half, not for the whole (docs/scaling.md).
+        now = self._clock()
+        try:
+            self.sync()
+            self.dispatch.tick_occupancy(now)
+        except Exception:  # a bug here must not stop the clock of a running ground
+            log.exception("dispatch tick failed")
+        else:
+            asyncio.get_running_loop().call_soon(self._tick_targets, now)
+        if self._started:
+            self._schedule_tick()
+
+    def _tick_targets(self, now_s: float) -> None:
+        try:
+            commands = self.dispatch.tick_targets(now_s)
+        except Exception:
+            log.exception("dispatch tick failed")
+            return
+        if len(commands) <= BATCH:
+            self._carry_out(commands)
+        else:  # a burst (every train at start-up): in batches, yielding between them
+            task = asyncio.get_running_loop().create_task(self._carry_out_paced(tuple(commands)))
+            self._tasks.add(task)
+            task.add_done_callback(self._tasks.discard)
+
+    def sync(self) -> None:
+        """What raises no event: which trains have an open connection."""
+        open_now = self.server.open_connections()
+        for train_id in self.dispatch.registry.train_ids():
+            self.dispatch.connection(train_id, train_id in open_now)
+
+    # ------------------------------------------------------------------ the link
+
+    def _on_event(self, train_id: int | None, event: Event, now_s: float) -> None:
+        commands = self.dispatch.on_event(train_id, event, now_s)
+        if not commands:
+            return
+        self._queued += commands
+        if self._flush_scheduled:
+            return
+        try:
+            loop = asyncio.get_running_loop()
+        except RuntimeError:  # no loop (a test feeding events by hand): at once
+            self._flush()
+            return
+        self._flush_scheduled = True
+        loop.call_soon(self._flush)
+
+    def _flush(self) -> None:
+        self._flush_scheduled = False
+        commands, self._queued = self._queued, []
+        self._carry_out(commands)
+
+    # ------------------------------------------------------------------ the dispatcher
+
+    async def execute(self, op: object, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
+        """Parse and carry out one operation; returns the result, with per-train delivery
+        outcomes under ``deliveries`` (sent in batches, yielding to the loop between).
+        Raises :class:`OperationError` (nothing done)."""
+        decided = self._decide(op, fields, actor)
+        if isinstance(decided, dict):
+            return decided
+        deliveries = await self._carry_out_paced(decided.commands)
+        return self._answer(op, actor, decided, deliveries)
+
+    def execute_now(self, op: object, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
+        """:meth:`execute` with every delivery made at once (a dispatcher's form: a TSR
+        goes to the trains it concerns, a few dozen at most on one line)."""
+        decided = self._decide(op, fields, actor)
+        if isinstance(decided, dict):
+            return decided
+        return self._answer(op, actor, decided, self._carry_out(list(decided.commands)))
+
+    def _decide(
+        self, op: object, fields: Mapping[str, Any], actor: str
+    ) -> Outcome | dict[str, Any]:
+        """The core's outcome of the operation (its record in the store made), or the
+        status for ``status``."""
+        now = self._clock()
+        operation = parse_operation(op, fields, line=self.line, now_s=now)
+        self._check_keys(operation)
+        if isinstance(operation, Status):
+            self.sync()
+            return {**self.server.status(), "dispatch": self.dispatch.status(now)}
+        self._flush()  # every train where it last said it was
+        restrictions = dict(self.dispatch.restrictions)
+        outcome = self.dispatch.execute(operation, actor, now)
+        try:
+            self._record(operation, outcome, actor, now)
+        except OperationError:  # not in the store: not in force either, nothing sent
+            self.dispatch.restrictions = restrictions
+            raise
+        return outcome
+
+    @staticmethod
+    def _answer(
+        op: object, actor: str, outcome: Outcome, deliveries: Mapping[int, str]
+    ) -> dict[str, Any]:
+        kv(log, logging.INFO, "operation", op=op, actor=actor, trains=len(deliveries))
+        return {**outcome.result, "deliveries": {str(t): r for t, r in sorted(deliveries.items())}}
+
+    def _check_keys(self, operation: object) -> None:
+        """A named train without a key can never register (authentication on): a delivery
+        would wait for it forever, so the whole request is refused."""
+        trains = getattr(operation, "trains", ())
+        keys = self.server.keys
+        if not trains or not self.server.config.require_auth or keys is None:
+            return
+        keyless = [t for t in trains if keys.active(t) is None]
+        if keyless:
+            raise OperationError(
+                {
+                    "trains": f"{keyless!r} is not allowed: expected train ids that have a key "
+                    "in the server's key file (authentication is on)"
+                }
+            )
+
+    def _record(self, operation: object, outcome: Outcome, actor: str, now_s: float) -> None:
+        """Declared restrictions go to the audit log before their target points leave."""
+        store = self.server.store
+        if store is None:
+            return
+        if isinstance(operation, SetRestriction | ClearRestriction):
+            ident = outcome.result["id"]
+            action = (
+                "restriction_set" if isinstance(operation, SetRestriction) else "restriction_clear"
+            )
+            detail: dict[str, Any] = {"id": ident}
+            if isinstance(operation, SetRestriction):
+                detail |= restriction_view(operation.restriction)
+            try:
+                store.audit(action, actor=actor, at_s=now_s, detail=detail)
+            except StoreError as exc:
+                raise OperationError({"form": f"the store refused it: {exc}"}) from None
+
+    # ------------------------------------------------------------------ carrying out
+
+    def _send(self, command: Command, train_ids: list[int]) -> dict[int, str]:
+        """Carry out one command for ``train_ids`` through the server."""
+        s = self.server
+        if isinstance(command, DeliverTsr):
+            tsr, actor = command.tsr, command.tsr.set_by or "ground"
+            return s.set_tsr(train_ids, tsr.message, actor=actor, reason=tsr.reason)
+        if isinstance(command, CancelTsrOn):
+            return s.cancel_tsr(train_ids, command.session, actor=command.actor)
+        if isinstance(command, SendTargetPoint):
+            return s.send_target_point(train_ids, command.target, actor=command.actor)
+        return s.send_dispatch_command(train_ids, command.command, actor=command.actor)
+
+    @staticmethod
+    def _train_ids(command: Command) -> tuple[int, ...]:
+        return (command.train_id,) if isinstance(command, SendTargetPoint) else command.train_ids
+
+    def _carry_out(self, commands: list[Command]) -> dict[int, str]:
+        results: dict[int, str] = {}
+        for command in commands:
+            results |= self._send(command, list(self._train_ids(command)))
+        self._log_errors(results)
+        return results
+
+    async def _carry_out_paced(self, commands: tuple[Command, ...]) -> dict[int, str]:
+        results: dict[int, str] = {}
+        for command in commands:
+            ids = self._train_ids(command)
+            for start in range(0, len(ids), BATCH):
+                results |= self._send(command, list(ids[start : start + BATCH]))
+                await asyncio.sleep(0)
+        self._log_errors(results)
+        return results
+
+    @staticmethod
+    def _log_errors(results: Mapping[int, str]) -> None:
+        for train_id, outcome in sorted(results.items()):
+            if outcome.startswith("error"):
+                kv(log, logging.WARNING, "delivery_refused", train=train_id, error=outcome)
