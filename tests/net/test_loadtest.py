@@ -5,6 +5,7 @@ dashboard run (Debian's chromium) reports what the page drew."""
 from __future__ import annotations
 
 import struct
+from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
 
 import pytest
@@ -179,9 +180,11 @@ def test_screenshot_without_dashboard_exits_2_naming_the_option(
 )
 def test_dashboard_loadtest_reports_what_the_page_drew(tmp_path: Path) -> None:
     shot = tmp_path / "page.png"
-    report = run_loadtest(
-        LoadtestOptions(trains=20, seconds=4.0, dashboard=True, screenshot=str(shot))
-    )
+    options = LoadtestOptions(trains=20, seconds=4.0, dashboard=True, screenshot=str(shot))
+    # in a thread of its own: after pytest-playwright's browser tests the main thread
+    # keeps an event loop marked running, and run_loadtest starts one (asyncio.run)
+    with ThreadPoolExecutor(1) as pool:
+        report = pool.submit(run_loadtest, options).result(timeout=120.0)
     assert report["lost"] == 0
     assert report["dispatch"] is True
     page = report["dashboard"]

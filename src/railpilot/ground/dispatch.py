@@ -64,7 +64,7 @@ from .operations import (
 )
 from .registry import TrainRegistry
 from .store import Snapshot
-from .targets import DeclaredRestriction, TargetPointTracker
+from .targets import DeclaredRestriction, TargetPointTracker, is_clear
 from .tsr_manager import Cancel, Deliver, LineTsr, LineTsrState, TrainRoute, TsrManager
 
 #: One position sample per train at most this often [s], and how many are kept (an hour).
@@ -204,20 +204,16 @@ class GroundDispatch:
         Its destination is the line's end in its direction (the ground holds no route
         beyond its timetable, which ends there on the heavy-haul line).
         """
-        if not self.registry.knows(train_id):
+        report = self.registry.report(train_id)
+        if report is None or report[1].direction not in (UP, DOWN):
             return None
-        state = self.registry.state(train_id, 0.0)
-        info = state.running_info
-        if not state.registered or info is None or state.length_m is None:
-            return None
-        if info.direction not in (UP, DOWN):
-            return None
+        _, info, length_m, _ = report
         try:
             return TrainRoute(
                 train_id,
                 info.direction,
                 info.position_m,
-                state.length_m,
+                length_m,
                 float(line_end_m(self.line, info.direction)),
             )
         except ConfigError:  # a position off the line's km posts
@@ -424,11 +420,8 @@ class GroundDispatch:
             if train.target_points:
                 newest = max(train.target_points)
                 target = train.target_points[newest][0]
-                clear = target.reason is TargetReason.OTHER and target.position_m in (
-                    self.line.start_m,
-                    self.line.end_m,
-                )
-                self.targets.resume(train.train_id, newest, holding=not clear)
+                holding = not is_clear(target, self.line)
+                self.targets.resume(train.train_id, newest, holding=holding)
             if train.dispatch_commands:
                 self._next_command = max(self._next_command, max(train.dispatch_commands) + 1)
         for session, stored in sorted(snapshot.tsrs.items()):

@@ -434,5 +434,4 @@ def config_error_field(exc: ConfigError) -> str:
         "tsr.session": "session",
         "session": "session",
         "tsr.valid_until_s": "valid_until_min",
-        "restriction_id": "id",
     }.get(exc.field, "form")

@@ -213,15 +213,18 @@ class TrainRegistry:
     def train_ids(self) -> tuple[int, ...]:
         return tuple(sorted(self._trains))
 
+    def report(self, train_id: int) -> tuple[int, RunningInfo, float, float] | None:
+        """``(train id, last running info, train length [m], when it came [s])`` of a
+        registered train that has reported, else None: what the occupancy and the TSR
+        routes need, per running info, without building a :class:`TrainState`."""
+        t = self._trains.get(train_id)
+        if t is None or not t.registered or t.info is None or t.request is None:
+            return None
+        return t.train_id, t.info, t.request.train_length_m, t.info_at_s
+
     def reports(self) -> list[tuple[int, RunningInfo, float, float]]:
-        """``(train id, last running info, train length [m], when it came [s])`` of every
-        registered train that has reported: what the occupancy needs, without building a
-        :class:`TrainState` per train."""
-        return [
-            (t.train_id, t.info, t.request.train_length_m, t.info_at_s)
-            for t in self._trains.values()
-            if t.registered and t.info is not None and t.request is not None
-        ]
+        """:meth:`report` of every registered train that has reported."""
+        return [r for t in self._trains if (r := self.report(t)) is not None]
 
     def knows(self, train_id: int) -> bool:
         """Whether the registry has heard of ``train_id``."""

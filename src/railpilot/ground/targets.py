@@ -86,6 +86,12 @@ REASON_PRECEDENCE: tuple[TargetReason, ...] = (
 CLEAR_REASON = TargetReason.OTHER
 
 
+def is_clear(target: TargetPoint, line: RailLine) -> bool:
+    """Whether ``target`` is a clear as the tracker sends one (module docstring): reason
+    :data:`CLEAR_REASON` at an end of ``line``."""
+    return target.reason is CLEAR_REASON and target.position_m in (line.start_m, line.end_m)
+
+
 # ---------------------------------------------------------------------------- declarations
 
 

@@ -207,7 +207,10 @@ def _screenshot(path: Path) -> dict[str, Any]:
                     page.fill(f"#f-{name}", value)
                 page.click("#tsr-submit")
                 expect(page.locator("#tsr-result")).to_contain_text("set", timeout=wait_ms)
-                session = _on_loop(live, lambda: max(live.host.dispatch.tsrs.next_session() - 1, 1))
+                # the one TSR on this ground: the form's
+                (session,) = _on_loop(
+                    live, lambda: [t.session for t in live.host.dispatch.tsrs.tsrs()]
+                )
                 concerned = _on_loop(live, lambda: live.host.dispatch.tsrs.delivered_to(session))
                 for train in concerned:
                     chip = page.locator(

@@ -31,7 +31,7 @@ import socket
 import time
 from collections import deque
 from collections.abc import Callable, Generator, Mapping
-from typing import Any, cast
+from typing import Any
 
 import uvicorn
 
@@ -39,12 +39,12 @@ from railpilot.errors import ConfigError
 from railpilot.ground.dispatch import HISTORY_SAMPLES
 from railpilot.ground.operations import OperationError
 from railpilot.ground.registry import TrainState
-from railpilot.ground.targets import restricted_blocks
+from railpilot.ground.targets import is_clear, restricted_blocks
 from railpilot.ground.tsr_manager import LineTsr
 from railpilot.line.model import DOWN, UP
 from railpilot.link import TsrState
 from railpilot.link.events import AppliedTsr
-from railpilot.link.messages import TargetReason, TravelDirection
+from railpilot.link.messages import TargetPoint, TravelDirection
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.onboard.mrsp import SpeedProfile
 
@@ -124,26 +124,21 @@ class ServerSource:
     def snapshot(self, now_s: float) -> dict[str, Any]:
         """The whole picture at ``now_s`` (DashboardSource), built in one go."""
         build = self._build(now_s)
-        while True:
-            try:
-                next(build)
-            except StopIteration as done:
-                return cast(dict[str, Any], done.value)
+        while (snap := next(build)) is None:
+            pass
+        return snap
 
     async def snapshot_async(self, now_s: float) -> dict[str, Any]:
         """:meth:`snapshot`, yielding to the event loop every :data:`SLICE` trains: at a
         thousand trains a snapshot costs tens of ms, and the trains' frames, which share
         this loop, wait for one slice instead of the whole."""
         build = self._build(now_s)
-        while True:
-            try:
-                next(build)
-            except StopIteration as done:
-                return cast(dict[str, Any], done.value)
+        while (snap := next(build)) is None:
             await asyncio.sleep(0)
+        return snap
 
-    def _build(self, now_s: float) -> Generator[None, None, dict[str, Any]]:
-        """The snapshot; yields where a caller may let the loop run."""
+    def _build(self, now_s: float) -> Generator[dict[str, Any] | None, None, None]:
+        """Yields None where a caller may let the loop run, then the snapshot."""
         self.host.sync()
         registry = self.dispatch.registry
         states = {s.train_id: s for s in registry.states(now_s)}
@@ -154,15 +149,15 @@ class ServerSource:
             occupancy = self.dispatch.compute_occupancy(now_s)
         restricted = restricted_blocks(self.line, self.dispatch.restrictions.values())
         aspects = view.signal_aspects(self.line, occupancy, restricted)
-        yield
+        yield None
         trains: list[dict[str, Any]] = []
         for k, state in enumerate(states.values(), 1):
             trains.append(self._train_view(state, now_s))
             if k % SLICE == 0:
-                yield
+                yield None
         numbers = {t["id"]: t["number"] for t in trains}
         graph = yield from self._graph(states, numbers, now_s)
-        return {
+        yield {
             "now_s": now_s,
             "version": self.dispatch.version,
             "line": view.line_view(self.line, aspects),
@@ -215,30 +210,26 @@ class ServerSource:
 
     def _target(self, state: TrainState) -> dict[str, Any] | None:
         """The train's target point in force (its newest id), as ``view.target_view``
-        shows one; a clear (the line's end, reason OTHER) is no target."""
+        shows one; a clear is no target."""
         record = self.server.records.get(state.train_id)
         if record is None or not record.target_points:
             return None
         target_id = max(record.target_points)
         delivery = record.target_points[target_id]
         message = delivery.message
-        position = float(getattr(message, "position_m", math.nan))
-        reason = getattr(message, "reason", None)
-        if reason is TargetReason.OTHER and position in (self.line.start_m, self.line.end_m):
+        if not isinstance(message, TargetPoint) or is_clear(message, self.line):
             return None
-        computed = self.dispatch.targets.current(state.train_id)
-        ours = (
-            computed is not None
-            and self.dispatch.targets.current_target_id(state.train_id) == target_id
-        )
+        # the block only when the ground computed this target (not one sent by hand)
+        targets = self.dispatch.targets
+        computed = targets.current(state.train_id)
+        ours = computed is not None and targets.current_target_id(state.train_id) == target_id
         info = state.running_info
         travel = info.direction if info is not None and info.direction in (UP, DOWN) else UP
-        signal = self.line.signal_near(position, travel)
         return {
             "id": target_id,
-            "km": view.km(position),
-            "reason": getattr(reason, "name", str(reason)),
-            "signal": signal,
+            "km": view.km(message.position_m),
+            "reason": message.reason.name,
+            "signal": self.line.signal_near(message.position_m, travel),
             "block": computed.block_id if ours and computed is not None else None,
             "state": delivery.state.name,
         }
