@@ -72,6 +72,26 @@ def tsr(session: int, start_m: float = 5_000.0, end_m: float = 6_000.0) -> TsrSe
     return TsrSet(session, start_m, end_m, 40 / 3.6, now, now + 600.0)
 
 
+def onboard_config(
+    train_id: int,
+    *,
+    timers: LinkTimers = FAST,
+    length_m: float = LENGTH_M,
+    loco_number: str = "SS4-0123",
+    driver_id: int = 42,
+) -> OnboardConfig:
+    """A test train's onboard configuration (train number ``K<id>``, this ground)."""
+    return OnboardConfig(
+        train_id=train_id,
+        ground_id=GROUND_ID,
+        train_number=f"K{train_id}",
+        loco_number=loco_number,
+        driver_id=driver_id,
+        train_length_m=length_m,
+        timers=timers,
+    )
+
+
 @dataclass
 class Rig:
     """A ground server, optionally a proxy, and trains, with everything they reported."""
@@ -88,15 +108,7 @@ class Rig:
     stop: asyncio.Event = field(default_factory=asyncio.Event)
 
     def add_train(self, train_id: int = TRAIN_ID, *, start: bool = True) -> OnboardClient:
-        config = OnboardConfig(
-            train_id=train_id,
-            ground_id=GROUND_ID,
-            train_number=f"K{train_id}",
-            loco_number="SS4-0123",
-            driver_id=42,
-            train_length_m=LENGTH_M,
-            timers=self.timers,
-        )
+        config = onboard_config(train_id, timers=self.timers)
         client = OnboardClient(
             config,
             self.keys,

@@ -14,12 +14,12 @@ from pathlib import Path
 from railpilot.ground.store import Store
 from railpilot.line.loader import load_line
 from railpilot.line.model import UP
-from railpilot.link import DeliveryState, GroundConfig, OnboardConfig, TargetReason
+from railpilot.link import DeliveryState, GroundConfig, TargetReason
 from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource
 
-from .helpers import FAST, GROUND_ID, make_keys, run
+from .helpers import FAST, GROUND_ID, make_keys, onboard_config, run
 
 LINE = load_line("heavy-haul")
 LEADER, FOLLOWER = 5001, 5002
@@ -73,15 +73,7 @@ class Ground:
 def _trains(port: int, stop: asyncio.Event) -> tuple[dict[int, OnboardClient], list[asyncio.Task]]:
     clients, tasks = {}, []
     for train_id, start_m in POSITIONS_M.items():
-        config = OnboardConfig(
-            train_id=train_id,
-            ground_id=GROUND_ID,
-            train_number=f"K{train_id}",
-            loco_number="HXD1-01",
-            driver_id=7,
-            train_length_m=LENGTH_M,
-            timers=FAST,
-        )
+        config = onboard_config(train_id, length_m=LENGTH_M, loco_number="HXD1-01", driver_id=7)
         trajectory = Trajectory(start_m=start_m, speed_mps=0.0, direction=UP)
         clients[train_id] = client = OnboardClient(
             config, make_keys(LEADER, FOLLOWER), "127.0.0.1", port, trajectory=trajectory

@@ -22,6 +22,12 @@ from railpilot.web.fake import FakeGround
 TOKEN = "test-dispatcher-token-0123456789"
 #: Longest wait for the server to start [s] (a deadline, not a sleep).
 START_DEADLINE_S = 20.0
+#: The browser tests' skip where Debian's chromium is missing.
+needs_chromium = pytest.mark.skipif(
+    not CHROMIUM.exists(),
+    reason=f"Debian's chromium is not installed at {CHROMIUM} (apt-get install chromium; "
+    ".ci/run does it): the browser tests need it",
+)
 
 
 @pytest.fixture(scope="session")

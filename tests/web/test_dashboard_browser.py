@@ -10,18 +10,13 @@ from __future__ import annotations
 import struct
 from pathlib import Path
 
-import pytest
 from playwright.sync_api import Locator, Page, expect
 
 from railpilot.link.ground import TsrState
 
-from .conftest import CHROMIUM, TOKEN, Served
+from .conftest import TOKEN, Served, needs_chromium
 
-pytestmark = pytest.mark.skipif(
-    not CHROMIUM.exists(),
-    reason=f"Debian's chromium is not installed at {CHROMIUM} (apt-get install chromium; "
-    ".ci/run does it): the browser tests need it",
-)
+pytestmark = needs_chromium
 
 #: Longest wait for the page to show what the ground holds [ms].
 SHOWN_MS = 10_000

@@ -9,11 +9,12 @@ from typing import Any
 import pytest
 
 from railpilot.reproduce import dashboard
-from railpilot.web.browser import CHROMIUM
+
+from .conftest import needs_chromium
 
 
 @pytest.mark.browser
-@pytest.mark.skipif(not CHROMIUM.exists(), reason=f"Debian's chromium is not at {CHROMIUM}")
+@needs_chromium
 def test_the_demo_writes_a_screenshot_with_every_train(tmp_path: Path) -> None:
     # in a thread of its own, as in `make demo`: pytest-playwright's browser tests leave an
     # event loop running in this thread, and Playwright's sync API refuses to start there

@@ -12,14 +12,15 @@ from collections.abc import Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+from net.helpers import FAST, GROUND_ID, onboard_config
 from railpilot.line.loader import load_line
-from railpilot.link import GroundConfig, KeyStore, OnboardConfig, TravelDirection, TsrState
+from railpilot.link import GroundConfig, KeyStore, TravelDirection, TsrState
 from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource
 from railpilot.web.source import DashboardSource
 
-from .test_live_dashboard import CONCERNED, FAST, GROUND_ID, LENGTH_M, TRAINS
+from .test_live_dashboard import CONCERNED, LENGTH_M, TRAINS
 
 
 def _run(coro: Coroutine[Any, Any, None]) -> None:
@@ -61,15 +62,7 @@ async def _scenario() -> None:
     tasks = []
     try:
         for train_id, km, travel, speed in TRAINS:
-            config = OnboardConfig(
-                train_id=train_id,
-                ground_id=GROUND_ID,
-                train_number=f"K{train_id}",
-                loco_number="HXD1-01",
-                driver_id=7,
-                train_length_m=LENGTH_M,
-                timers=FAST,
-            )
+            config = onboard_config(train_id, length_m=LENGTH_M, loco_number="HXD1-01", driver_id=7)
             trajectory = Trajectory(start_m=km * 1000.0, speed_mps=speed, direction=travel)
             client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
             tasks.append(asyncio.create_task(client.run(stop)))
@@ -149,15 +142,7 @@ def test_a_train_reaching_a_tsr_later_gets_it() -> None:
             form = {"start_km": 100, "end_km": 101, "limit_kmh": 40, "valid_until_min": 30}
             answer = source.set_tsr({**form, "reason": "before any train"}, "d", now)
             assert answer["ok"]["deliveries"] == []
-            config = OnboardConfig(
-                train_id=3001,
-                ground_id=GROUND_ID,
-                train_number="K3001",
-                loco_number="HXD1-02",
-                driver_id=7,
-                train_length_m=LENGTH_M,
-                timers=FAST,
-            )
+            config = onboard_config(3001, length_m=LENGTH_M, loco_number="HXD1-02", driver_id=7)
             trajectory = Trajectory(start_m=90_000.0, direction=TravelDirection.UP)
             client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
             task = asyncio.create_task(client.run(stop))

@@ -20,33 +20,20 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Page, expect
 
+from net.helpers import FAST, GROUND_ID, onboard_config
 from railpilot.line.loader import load_line
-from railpilot.link import GroundConfig, KeyStore, LinkTimers, OnboardConfig, TravelDirection
+from railpilot.link import GroundConfig, KeyStore, TravelDirection
 from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource, serve_dashboard
 
-from .conftest import CHROMIUM, START_DEADLINE_S, TOKEN
+from .conftest import START_DEADLINE_S, TOKEN, needs_chromium
 
-pytestmark = pytest.mark.skipif(
-    not CHROMIUM.exists(),
-    reason=f"Debian's chromium is not installed at {CHROMIUM} (apt-get install chromium; "
-    ".ci/run does it): the browser tests need it",
-)
+pytestmark = needs_chromium
 
 #: Longest wait for the page to show what the ground holds [ms] (acknowledgements travel
 #: over TCP and are resent every 0.2 s: this is a deadline, not an expected time).
 SHOWN_MS = 15_000
-GROUND_ID = 1
-#: Short timers, as tests/net/helpers.py (FAST).
-FAST = LinkTimers(
-    cycle_s=0.1,
-    timeout_cycles=5,
-    resend_interval_s=0.2,
-    max_round_trip_s=0.5,
-    reconnect_initial_s=0.05,
-    reconnect_max_s=0.5,
-)
 #: (train id, start km, direction, speed [m/s]). A TSR on km 300-330 concerns the first two
 #: (one each way, both before it); the third is past it going UP, so it is spared.
 TRAINS = (
@@ -86,15 +73,7 @@ async def _ground(live: Live) -> None:
     try:
         dashboard, serving = await serve_dashboard(source, token=TOKEN, port=0)
         for train_id, km, travel, speed in TRAINS:
-            config = OnboardConfig(
-                train_id=train_id,
-                ground_id=GROUND_ID,
-                train_number=f"K{train_id}",
-                loco_number="HXD1-01",
-                driver_id=7,
-                train_length_m=LENGTH_M,
-                timers=FAST,
-            )
+            config = onboard_config(train_id, length_m=LENGTH_M, loco_number="HXD1-01", driver_id=7)
             client = OnboardClient(
                 config,
                 keys,
