@@ -441,6 +441,7 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
 
 def _ground_serve(args: argparse.Namespace) -> int:
     from railpilot.ground.store import StoreError, is_postgres_url, open_store, redact_dsn
+    from railpilot.heap import freeze_startup
     from railpilot.link import GroundConfig
     from railpilot.net.admin import AdminServer
     from railpilot.net.dispatch_host import DispatchHost
@@ -490,6 +491,9 @@ def _ground_serve(args: argparse.Namespace) -> int:
             if args.admin_port != -1:
                 admin = AdminServer(dispatch, port=args.admin_port)
                 await admin.start()
+            # Everything alive now lives as long as the process: out of the collector's
+            # reach, so that its full collections stop walking it (railpilot/heap.py).
+            freeze_startup()
             if args.seconds is not None:
                 asyncio.get_running_loop().call_later(args.seconds, stop.set)
             await stop.wait()

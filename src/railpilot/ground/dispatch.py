@@ -232,11 +232,13 @@ class GroundDispatch:
         self.tick_occupancy(now_s)
         return self.tick_targets(now_s)
 
-    def tick_occupancy(self, now_s: float) -> None:
-        """The first half of :meth:`tick`: expire TSRs and compute the block occupancy (a
-        transport may let other work run before the second half)."""
+    def tick_occupancy(self, now_s: float, occupancy: Occupancy | None = None) -> None:
+        """The first half of :meth:`tick`: expire TSRs and take the block occupancy at
+        ``now_s``: ``occupancy`` if a transport computed it elsewhere
+        (:meth:`occupancy_from`), else computed here. A transport may let other work run
+        before the second half."""
         self.tsrs.tick(now_s)  # Withdraw: nothing to send, each train drops it by its clock
-        self.occupancy = self.compute_occupancy(now_s)
+        self.occupancy = occupancy if occupancy is not None else self.compute_occupancy(now_s)
 
     def tick_targets(self, now_s: float) -> list[Command]:
         """The second half of :meth:`tick`: the target points that changed, from the
@@ -251,15 +253,24 @@ class GroundDispatch:
     def compute_occupancy(self, now_s: float) -> Occupancy:
         """Block occupancy at ``now_s`` [s] from every registered train's last report (a
         stale one counts conservatively: ground/occupancy.py)."""
+        return self.occupancy_from(self.registry.reports(), now_s)
+
+    def occupancy_from(
+        self, reports: Iterable[tuple[int, RunningInfo, float, float]], now_s: float
+    ) -> Occupancy:
+        """Block occupancy at ``now_s`` [s] from ``reports``, a copy of the registry's
+        (``registry.reports()``). It reads nothing else that changes, so a transport may
+        run it in another thread on a copy taken in its own: the live ground does, to
+        keep its tens of ms at a thousand trains off the trains' event loop."""
         line = self.line
-        reports = [
+        trains = [
             TrainReport(train_id, float(info.position_m), info.direction, length_m, received_s)
-            for train_id, info, length_m, received_s in self.registry.reports()
+            for train_id, info, length_m, received_s in reports
             if info.direction in (UP, DOWN)
             and line.start_m <= info.position_m <= line.end_m
             and received_s <= now_s
         ]
-        return compute_occupancy(line, reports, now_s, self._occupancy_config)
+        return compute_occupancy(line, trains, now_s, self._occupancy_config)
 
     def _update_targets(self, now_s: float) -> list[Command]:
         self.occupancy = self.compute_occupancy(now_s)

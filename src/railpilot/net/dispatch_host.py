@@ -18,7 +18,9 @@ Declared restrictions live in the store's audit log (``restriction_set`` and
 ``restriction_clear`` entries, written before their target points leave) and are replayed
 from it at start.
 
-Threading: everything runs on the server's event loop thread.
+Threading: everything runs on the server's event loop thread, except each tick's block
+occupancy: a pure function of a copy of the trains' last reports, computed in a worker
+thread (:meth:`DispatchHost._on_tick`).
 """
 
 from __future__ import annotations
@@ -27,6 +29,7 @@ import asyncio
 import logging
 import time
 from collections.abc import Callable, Mapping
+from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from railpilot.ground.dispatch import (
@@ -39,6 +42,7 @@ from railpilot.ground.dispatch import (
     restriction_from_view,
     restriction_view,
 )
+from railpilot.ground.occupancy import Occupancy
 from railpilot.ground.operations import (
     ClearRestriction,
     OperationError,
@@ -87,6 +91,8 @@ class DispatchHost:
         self._ticker: asyncio.TimerHandle | None = None
         self._started = False
         self._tasks: set[asyncio.Task[dict[int, str]]] = set()
+        #: computes each tick's block occupancy, one at a time (:meth:`_on_tick`)
+        self._worker: ThreadPoolExecutor | None = None
         server.add_listener(self._on_event)
 
     # ------------------------------------------------------------------ lifecycle
@@ -97,6 +103,7 @@ class DispatchHost:
         if self._started:
             return
         self._started = True
+        self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occupancy")
         store = self.server.store
         if store is not None:
             restrictions: dict[int, DeclaredRestriction] = {}
@@ -122,6 +129,9 @@ class DispatchHost:
         if self._ticker is not None:
             self._ticker.cancel()
             self._ticker = None
+        if self._worker is not None:
+            self._worker.shutdown(wait=False, cancel_futures=True)
+            self._worker = None
         for task in self._tasks:
             task.cancel()
         self._started = False
@@ -131,22 +141,30 @@ class DispatchHost:
         self._ticker = loop.call_later(self.tick_s, self._on_tick)
 
     def _on_tick(self) -> None:
-        # In two halves, each its own turn of the loop, and the target points sent in
-        # batches: at a thousand trains each half costs ~10-20 ms, and the trains' frames
-        # wait for one half, not for the whole (docs/scaling.md).
+        # The block occupancy, a pure function of a copy of the trains' last reports, is
+        # computed in a worker thread: at a thousand trains it costs 15-40 ms, which on
+        # the loop every train's frame would wait for. The GIL passes back to the loop
+        # every few ms (sys.getswitchinterval). Then, on the loop, TSR expiry and the
+        # target points, sent in batches (docs/scaling.md).
+        loop = asyncio.get_running_loop()
         now = self._clock()
         try:
             self.sync()
-            self.dispatch.tick_occupancy(now)
+            reports = self.dispatch.registry.reports()
         except Exception:  # a bug here must not stop the clock of a running ground
             log.exception("dispatch tick failed")
         else:
-            asyncio.get_running_loop().call_soon(self._tick_targets, now)
+            assert self._worker is not None  # ticks run only between start() and stop()
+            future = loop.run_in_executor(self._worker, self.dispatch.occupancy_from, reports, now)
+            future.add_done_callback(lambda f: self._tick_targets(now, f))
         if self._started:
             self._schedule_tick()
 
-    def _tick_targets(self, now_s: float) -> None:
+    def _tick_targets(self, now_s: float, occupancy: asyncio.Future[Occupancy]) -> None:
+        if occupancy.cancelled() or not self._started:
+            return
         try:
+            self.dispatch.tick_occupancy(now_s, occupancy.result())
             commands = self.dispatch.tick_targets(now_s)
         except Exception:
             log.exception("dispatch tick failed")

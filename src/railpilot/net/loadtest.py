@@ -53,6 +53,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.heap import freeze_startup
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link import (
     Event,
@@ -416,6 +417,7 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
     if options.dashboard:
         dashboard = _Dashboard(host, options)
         await dashboard.start(ctx)
+    freeze_startup()  # as `ground serve` does, once started (railpilot/heap.py)
 
     shares = [ids[i :: options.client_processes] for i in range(options.client_processes)]
     pipes: list[Connection] = []

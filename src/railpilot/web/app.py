@@ -65,6 +65,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from railpilot.errors import ConfigError
+from railpilot.heap import collection_paused
 
 from .source import DashboardSource
 
@@ -316,14 +317,18 @@ class _SharedSnapshot:
                 return version, self.last
             version = self.source.version()
             t0 = loop.time()
-            build = getattr(self.source, "snapshot_async", None)
-            if build is not None:  # a source that yields to the loop while it builds
-                snap = await build(self.source.now_s())
-            else:
-                snap = self.source.snapshot(self.source.now_s())
-            build_s = loop.time() - t0
-            await asyncio.sleep(0)  # the trains' frames go first
-            text, encode_s = await dumps_sliced(snap)
+            # The snapshot's containers die young instead of being promoted by the
+            # collections that would run between its slices (railpilot/heap.py).
+            with collection_paused():
+                build = getattr(self.source, "snapshot_async", None)
+                if build is not None:  # a source that yields to the loop while it builds
+                    snap = await build(self.source.now_s())
+                else:
+                    snap = self.source.snapshot(self.source.now_s())
+                build_s = loop.time() - t0
+                await asyncio.sleep(0)  # the trains' frames go first
+                text, encode_s = await dumps_sliced(snap)
+                del snap
             self.pushes.append(Push(t0, build_s, encode_s, len(text)))
             self.version, self.built_at, self.last = version, loop.time(), text
             cost = build_s + encode_s

@@ -1,0 +1,1 @@
+"""Trains, ground and link together in simulated time (docs/cosim.md)."""

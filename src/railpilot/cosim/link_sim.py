@@ -1,0 +1,465 @@
+"""Trains and the ground over the simulated radio, in simulated time (docs/cosim.md).
+
+:class:`LinkSim` runs the live system's protocol and application code with another
+transport. Each train has an :class:`~railpilot.link.OnboardEndpoint`, kept across
+reconnects as ``net/client.py`` keeps it. The ground has one
+:class:`~railpilot.link.GroundEndpoint` per connection, all sharing one ``records``
+mapping as ``net/server.py`` does, and the dispatch core
+(:class:`~railpilot.ground.dispatch.GroundDispatch`) as ``net/dispatch_host.py`` runs it.
+Frames cross a :class:`~railpilot.cosim.channel.RadioChannel` per train.
+
+It is a discrete-event simulation. The queue holds packet arrivals, each endpoint's next
+deadline (``next_deadline_s``), the dispatch core's tick every ``tick_s`` and the trains'
+reconnect attempts. Nothing waits on a wall clock, so a day runs as fast as the events
+can be processed, and the same seed gives the same run, event for event.
+
+Connections. A connection is opened when the train's radio is up where it stands. When
+either end gives up on the link (``LinkFailed``: a timeout, or too many rejected frames
+in a row), the connection is closed at both ends at that instant, as the live adapters
+close their sockets. Packets still in flight on it are dropped. The onboard tries again
+after its own back-off (``reconnect_delay_s``, with jitter from a seeded generator).
+A train that registers on a new connection takes its deliveries over from the old one.
+
+Trains. A train is anything that says where it is (:class:`Mover`): here a constant-speed
+:class:`~railpilot.net.client.Trajectory`, as the load test uses. It hears every
+onboard event (``on_event``), so a driving model can obey what the link brings.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import random
+from collections import Counter
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass, field
+from functools import partial
+from typing import Any, Protocol
+
+from railpilot.errors import ConfigError, is_finite_number
+from railpilot.ground.dispatch import (
+    CancelTsrOn,
+    Command,
+    DeliverTsr,
+    GroundDispatch,
+    SendTargetPoint,
+)
+from railpilot.line.model import RailLine
+from railpilot.link import (
+    Event,
+    GroundConfig,
+    GroundEndpoint,
+    KeyStore,
+    LinkFailed,
+    OnboardConfig,
+    OnboardEndpoint,
+    OnboardState,
+    RunningInfo,
+    TrainDeregistered,
+    TrainRecord,
+    TrainRegistered,
+    TravelDirection,
+    TsrApplied,
+)
+from railpilot.net.client import Trajectory
+from railpilot.net.server import counters_dict
+
+from .channel import ChannelModel, RadioChannel
+
+#: The dispatch core's tick [s], as on the live ground (net/dispatch_host.py TICK_S).
+TICK_S = 1.0
+
+
+class Mover(Protocol):
+    """Where a train is: ``state(t_s)`` -> ``(position_m, speed_mps)`` at ``t_s`` seconds
+    after it started, and its ``direction``."""
+
+    @property
+    def direction(self) -> TravelDirection: ...
+
+    def state(self, elapsed_s: float) -> tuple[float, float]: ...
+
+
+@dataclass
+class SimTrain:
+    """One train of a :class:`LinkSim`: its onboard configuration, how it moves, and when
+    its onboard unit comes up [s after the start of the run]."""
+
+    config: OnboardConfig
+    mover: Mover
+    start_s: float = 0.0
+    #: every onboard event, with the simulated time [s since the epoch]
+    on_event: Callable[[Event, float], None] | None = None
+
+
+@dataclass
+class _Connection:
+    serial: int
+    train_id: int
+    ground: GroundEndpoint
+    open: bool = True
+
+
+@dataclass
+class TrainLinkStats:
+    """What happened on one train's link during the run."""
+
+    connects: int = 0
+    connect_attempts: int = 0
+    registrations: int = 0
+    link_failures: int = 0
+    tsr_applied: Counter[int] = field(default_factory=Counter)  # session -> times applied
+
+    def as_dict(self) -> dict[str, Any]:
+        return {
+            "connects": self.connects,
+            "connect_attempts": self.connect_attempts,
+            "registrations": self.registrations,
+            "link_failures": self.link_failures,
+            "tsr_applied": {str(k): v for k, v in sorted(self.tsr_applied.items())},
+        }
+
+
+class LinkSim:
+    """The trains' onboard endpoints, the ground's endpoints and dispatch core, and the
+    radio between them, in simulated time (module docstring).
+
+    Parameters
+    ----------
+    line
+        The line the ground dispatches (block occupancy, target points, TSR routes).
+    trains
+        The trains; ids must be unique and have keys in ``keys``.
+    channel
+        What the radio does to packets.
+    keys
+        The per-train keys (HMAC-SHA256 on every frame, as on the live link).
+    seed
+        Seeds every channel (per train) and the reconnect jitter.
+    start_s
+        The simulated clock at the start of the run [s since the epoch]: frame timestamps
+        and TSR validity are epoch times, as on the live link.
+    ground_id
+        The ground's link id.
+    """
+
+    def __init__(
+        self,
+        line: RailLine,
+        trains: Sequence[SimTrain],
+        channel: ChannelModel,
+        keys: KeyStore,
+        *,
+        seed: int = 0,
+        start_s: float = 1_800_000_000.0,
+        ground_id: int = 1,
+        tick_s: float = TICK_S,
+    ) -> None:
+        if not trains:
+            raise ConfigError("trains", [], "at least one train")
+        ids = [t.config.train_id for t in trains]
+        duplicates = sorted({i for i in ids if ids.count(i) > 1})
+        if duplicates:
+            raise ConfigError("trains", duplicates, "unique train ids")
+        if not is_finite_number(start_s) or start_s <= 0:
+            raise ConfigError("start_s", start_s, "a time > 0 [s since the epoch]")
+        timers = trains[0].config.timers
+        self.line = line
+        self.start_s = float(start_s)
+        self.now_s = self.start_s
+        self.keys = keys
+        self.tick_s = tick_s
+        self.ground_config = GroundConfig(ground_id=ground_id, timers=timers)
+        self.records: dict[int, TrainRecord] = {}
+        self.dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        self.trains = {t.config.train_id: t for t in trains}
+        self.onboard = {i: OnboardEndpoint(t.config, keys) for i, t in self.trains.items()}
+        self.channels = {i: RadioChannel(channel, seed, i) for i in self.trains}
+        self._jitter = {i: random.Random(f"railpilot-reconnect:{seed}:{i}") for i in self.trains}
+        self.stats = {i: TrainLinkStats() for i in self.trains}
+        self.live: dict[int, _Connection] = {}  # train id -> its open connection
+        self._connections: dict[int, _Connection] = {}  # serial -> connection, open or not
+        #: train id -> the serial of the onboard's open connection
+        self._onboard_serial: dict[int, int] = {}
+        self._serials = itertools.count(1)
+        self._queue: list[tuple[float, int, str, Any]] = []
+        self._order = itertools.count()  # ties keep the order they were queued in
+        self._deadline: dict[tuple[str, int], float] = {}
+        for train_id, train in self.trains.items():
+            self._push(self.start_s + train.start_s, "connect", train_id)
+        self._push(self.start_s + tick_s, "dispatch_tick", None)
+
+    # ------------------------------------------------------------------ running
+
+    def run_until(self, t_s: float) -> None:
+        """Process every event up to ``t_s`` seconds after the start of the run."""
+        end = self.start_s + t_s
+        queue = self._queue
+        while queue and queue[0][0] <= end:
+            at, _, kind, item = heapq.heappop(queue)
+            self.now_s = at
+            getattr(self, f"_on_{kind}")(item)
+        self.now_s = max(self.now_s, end)
+
+    def execute(self, commands: Iterable[Command]) -> None:
+        """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
+        for command in commands:
+            if isinstance(command, SendTargetPoint):
+                self._deliver(command.train_id, partial(_target, command=command, now_s=self.now_s))
+            elif isinstance(command, DeliverTsr):
+                for train_id in command.train_ids:
+                    self._deliver(train_id, partial(_tsr, command=command, now_s=self.now_s))
+            elif isinstance(command, CancelTsrOn):
+                for train_id in command.train_ids:
+                    self._deliver(train_id, partial(_cancel, command=command, now_s=self.now_s))
+            else:
+                for train_id in command.train_ids:
+                    self._deliver(train_id, partial(_command, command=command, now_s=self.now_s))
+
+    # ------------------------------------------------------------------ what a train is doing
+
+    def position(self, train_id: int, now_s: float | None = None) -> tuple[float, float]:
+        """``(position_m, speed_mps)`` of ``train_id`` at ``now_s`` (default: now)."""
+        train = self.trains[train_id]
+        at = self.now_s if now_s is None else now_s
+        return train.mover.state(at - self.start_s - train.start_s)
+
+    def link_report(self) -> dict[str, Any]:
+        """The link statistics of the run: frames, losses, resends, timeouts, rejections
+        by check (ground and onboard), and the channel's counts."""
+        ground = counters_dict(c.ground.counters for c in self._connections.values())
+        onboard = counters_dict([e.counters for e in self.onboard.values()])
+        packets = Counter[str]()
+        for channel in self.channels.values():
+            c = channel.counters
+            packets["packets"] += c.packets
+            packets["delivered"] += c.delivered
+            for cause, n in c.lost.items():
+                packets[f"lost_{cause}"] += n
+        return {
+            "ground": ground,
+            "onboard": onboard,
+            "channel": dict(packets),
+            "connects": sum(s.connects for s in self.stats.values()),
+            "link_failures": sum(s.link_failures for s in self.stats.values()),
+        }
+
+    # ------------------------------------------------------------------ the queue
+
+    def _push(self, at_s: float, kind: str, item: Any) -> None:
+        heapq.heappush(self._queue, (at_s, next(self._order), kind, item))
+
+    def _schedule(self, side: str, ident: int, deadline: float | None) -> None:
+        """Keep one live deadline per endpoint; older entries are skipped when popped."""
+        key = (side, ident)
+        if deadline is None:
+            self._deadline.pop(key, None)
+            return
+        deadline = max(deadline, self.now_s)
+        if self._deadline.get(key) == deadline:
+            return
+        self._deadline[key] = deadline
+        self._push(deadline, f"{side}_tick", (ident, deadline))
+
+    def _due(self, side: str, ident: int, deadline: float) -> bool:
+        if self._deadline.get((side, ident)) != deadline:
+            return False
+        del self._deadline[(side, ident)]
+        return True
+
+    # ------------------------------------------------------------------ events
+
+    def _on_connect(self, train_id: int) -> None:
+        stats = self.stats[train_id]
+        stats.connect_attempts += 1
+        onboard = self.onboard[train_id]
+        position, _ = self.position(train_id)
+        if not self.channels[train_id].up(self.now_s, position):
+            delay = onboard.reconnect_delay_s(self._jitter[train_id].random())
+            self._push(self.now_s + delay, "connect", train_id)
+            return
+        stats.connects += 1
+        conn = _Connection(
+            next(self._serials),
+            train_id,
+            GroundEndpoint(self.ground_config, self.keys, self.records),
+        )
+        self._connections[conn.serial] = conn
+        self._onboard_serial[train_id] = conn.serial
+        conn.ground.connection_made(self.now_s)
+        self._after_ground(conn)
+        self._refresh(train_id)
+        onboard.connection_made(self.now_s)
+        self._after_onboard(train_id, conn.serial)
+
+    def _on_onboard_tick(self, item: tuple[int, float]) -> None:
+        train_id, deadline = item
+        if self._due("onboard", train_id, deadline):
+            self._refresh(train_id)
+            self.onboard[train_id].tick(self.now_s)
+            self._after_onboard(train_id, self._serial_of(train_id))
+
+    def _on_ground_tick(self, item: tuple[int, float]) -> None:
+        serial, deadline = item
+        conn = self._connections[serial]
+        if self._due("ground", serial, deadline) and conn.open:
+            conn.ground.tick(self.now_s)
+            self._after_ground(conn)
+
+    def _on_to_ground(self, item: tuple[int, bytes]) -> None:
+        serial, data = item
+        conn = self._connections[serial]
+        if conn.open:
+            conn.ground.receive_data(data, self.now_s)
+            self._after_ground(conn)
+
+    def _on_to_train(self, item: tuple[int, bytes]) -> None:
+        serial, data = item
+        conn = self._connections[serial]
+        if conn.open:
+            self._refresh(conn.train_id)
+            self.onboard[conn.train_id].receive_data(data, self.now_s)
+            self._after_onboard(conn.train_id, serial)
+
+    def _on_dispatch_tick(self, _: None) -> None:
+        open_now = {t for t, c in self.live.items() if c.open}
+        for train_id in self.dispatch.registry.train_ids():
+            self.dispatch.connection(train_id, train_id in open_now)
+        self.execute(self.dispatch.tick(self.now_s))
+        self._push(self.now_s + self.tick_s, "dispatch_tick", None)
+
+    # ------------------------------------------------------------------ the two ends
+
+    def _serial_of(self, train_id: int) -> int | None:
+        """The serial of the onboard's open connection (at most one: its newest)."""
+        return self._onboard_serial.get(train_id)
+
+    def _refresh(self, train_id: int) -> None:
+        """The onboard's running info from where its train is now."""
+        train = self.trains[train_id]
+        position, speed = self.position(train_id)
+        c = train.config
+        self.onboard[train_id].update_running_info(
+            RunningInfo(
+                c.driver_id, c.train_number, c.loco_number, train.mover.direction, speed, position
+            )
+        )
+
+    def _after_onboard(self, train_id: int, serial: int | None) -> None:
+        onboard = self.onboard[train_id]
+        data = onboard.data_to_send()
+        if data and serial is not None:
+            self._send("up", train_id, serial, data)
+        failed = False
+        listener = self.trains[train_id].on_event
+        for event in onboard.events():
+            self._count_onboard(train_id, event)
+            if listener is not None:
+                listener(event, self.now_s)
+            failed |= isinstance(event, LinkFailed)
+        if failed and serial is not None:
+            self._close(self._connections[serial])
+        self._schedule("onboard", train_id, onboard.next_deadline_s())
+
+    def _after_ground(self, conn: _Connection) -> None:
+        ground = conn.ground
+        data = ground.data_to_send()
+        if data and conn.open:
+            self._send("down", conn.train_id, conn.serial, data)
+        failed = False
+        commands: list[Command] = []
+        for event in ground.events():
+            train_id = ground.train_id
+            if isinstance(event, TrainRegistered):
+                old = self.live.get(event.train_id)
+                if old is not None and old is not conn:
+                    self._close(old)
+                self.live[event.train_id] = conn
+            elif isinstance(event, TrainDeregistered) and self.live.get(event.train_id) is conn:
+                del self.live[event.train_id]
+            failed |= isinstance(event, LinkFailed)
+            commands += self.dispatch.on_event(train_id, event, self.now_s)
+        if failed:
+            self._close(conn)
+        else:
+            self._schedule("ground", conn.serial, ground.next_deadline_s())
+        if commands:
+            self.execute(commands)
+
+    def _send(self, direction: str, train_id: int, serial: int, data: bytes) -> None:
+        position, _ = self.position(train_id)
+        arrival = self.channels[train_id].transmit(direction, self.now_s, position)
+        if arrival is not None:
+            self._push(arrival, "to_ground" if direction == "up" else "to_train", (serial, data))
+
+    def _close(self, conn: _Connection) -> None:
+        """Close a connection at both ends (module docstring) and plan the reconnect."""
+        if not conn.open:
+            return
+        conn.open = False
+        conn.ground.connection_lost(self.now_s)
+        self._deadline.pop(("ground", conn.serial), None)
+        if self.live.get(conn.train_id) is conn:
+            del self.live[conn.train_id]
+        if self._onboard_serial.get(conn.train_id) != conn.serial:
+            return  # an older connection the onboard had already left
+        del self._onboard_serial[conn.train_id]
+        onboard = self.onboard[conn.train_id]
+        if onboard.state is not OnboardState.DISCONNECTED:
+            onboard.connection_lost(self.now_s)
+        self.stats[conn.train_id].link_failures += 1
+        for event in onboard.events():
+            self._count_onboard(conn.train_id, event)
+        delay = onboard.reconnect_delay_s(self._jitter[conn.train_id].random())
+        self._push(self.now_s + delay, "connect", conn.train_id)
+
+    def _count_onboard(self, train_id: int, event: Event) -> None:
+        stats = self.stats[train_id]
+        if isinstance(event, TsrApplied):
+            stats.tsr_applied[event.tsr.session] += 1
+        elif type(event).__name__ == "Registered":
+            stats.registrations += 1
+
+    def _deliver(self, train_id: int, apply: Callable[[Any], None]) -> None:
+        """On the train's live connection, else into its record for the next
+        registration (as ``GroundServer._deliver``)."""
+        conn = self.live.get(train_id)
+        if conn is not None and conn.open and conn.ground.train_id == train_id:
+            apply(conn.ground)
+            self._after_ground(conn)
+            return
+        record = self.records.get(train_id)
+        if record is None:
+            record = self.records[train_id] = TrainRecord(train_id)
+        apply(record)
+
+
+def _tsr(dest: Any, command: DeliverTsr, now_s: float) -> None:
+    if isinstance(dest, GroundEndpoint):
+        dest.set_tsr(command.tsr.message, now_s)
+    else:
+        dest.add_tsr(command.tsr.message)
+
+
+def _cancel(dest: Any, command: CancelTsrOn, now_s: float) -> None:
+    if isinstance(dest, GroundEndpoint):
+        dest.cancel_tsr(command.session, now_s)
+    else:
+        dest.cancel_tsr(command.session)
+
+
+def _target(dest: Any, command: SendTargetPoint, now_s: float) -> None:
+    if isinstance(dest, GroundEndpoint):
+        dest.send_target_point(command.target, now_s)
+    else:
+        dest.add_target_point(command.target)
+
+
+def _command(dest: Any, command: Any, now_s: float) -> None:
+    if isinstance(dest, GroundEndpoint):
+        dest.send_dispatch_command(command.command, now_s)
+    else:
+        dest.add_dispatch_command(command.command)
+
+
+__all__ = ["LinkSim", "Mover", "SimTrain", "TrainLinkStats", "Trajectory"]
