@@ -27,7 +27,7 @@ def test_a_pause_holds_collection_and_gives_it_back() -> None:
 
 def test_interleaved_pauses_resume_collection_only_when_the_last_one_ends() -> None:
     async def main() -> None:
-        first_in, second_in, first_may_leave = asyncio.Event(), asyncio.Event(), asyncio.Event()
+        first_in, first_may_leave, first_left = asyncio.Event(), asyncio.Event(), asyncio.Event()
 
         async def first() -> None:
             with collection_paused():
@@ -35,14 +35,13 @@ def test_interleaved_pauses_resume_collection_only_when_the_last_one_ends() -> N
                 await first_may_leave.wait()
             # the second pause is still in force
             assert not gc.isenabled()
+            first_left.set()
 
         async def second() -> None:
             await first_in.wait()
             with collection_paused():
-                second_in.set()
                 first_may_leave.set()
-                await asyncio.sleep(0)
-                await asyncio.sleep(0)
+                await first_left.wait()  # the first pause ended inside this one
                 assert not gc.isenabled()
             assert gc.isenabled()
 

@@ -20,6 +20,15 @@ from railpilot.web.fake import FakeGround
 
 #: The dispatcher token of every test.
 TOKEN = "test-dispatcher-token-0123456789"
+#: A valid TSR form, as a dispatcher fills it in (text fields, as the page sends them).
+TSR_FORM = {
+    "start_km": "300",
+    "end_km": "330",
+    "limit_kmh": "40",
+    "valid_from_min": "0",
+    "valid_until_min": "90",
+    "reason": "sun kink check",
+}
 #: Longest wait for the server to start [s] (a deadline, not a sleep).
 START_DEADLINE_S = 20.0
 #: The browser tests' skip where Debian's chromium is missing.

@@ -16,17 +16,9 @@ from railpilot.link.ground import TsrState
 from railpilot.web.app import STATIC, create_app
 from railpilot.web.fake import FakeGround
 
-from .conftest import TOKEN
+from .conftest import TOKEN, TSR_FORM
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
-GOOD = {
-    "start_km": "300",
-    "end_km": "330",
-    "limit_kmh": "40",
-    "valid_from_min": "0",
-    "valid_until_min": "90",
-    "reason": "sun kink check",
-}
 
 
 @pytest.fixture
@@ -107,7 +99,7 @@ def test_a_red_signal_protects_a_block_that_is_not_free(client: TestClient) -> N
 )
 def test_writing_without_the_token_is_401(client: TestClient, headers: dict[str, str]) -> None:
     for url in ("/api/tsr", "/api/tsr/1/cancel"):
-        response = client.post(url, json=GOOD, headers=headers)
+        response = client.post(url, json=TSR_FORM, headers=headers)
         assert response.status_code == 401
         assert response.headers["www-authenticate"] == "Bearer"
         assert "token" in response.json()["errors"]
@@ -129,7 +121,7 @@ def test_another_host_name_is_refused(ground: FakeGround) -> None:
 
 
 def test_bad_values_are_422_with_a_message_per_field(client: TestClient) -> None:
-    fields = {**GOOD, "start_km": "abc", "end_km": "700", "reason": " ", "valid_until_min": ""}
+    fields = {**TSR_FORM, "start_km": "abc", "end_km": "700", "reason": " ", "valid_until_min": ""}
     errors = _errors(client.post("/api/tsr", json=fields, headers=AUTH))
     assert set(errors) == {"start_km", "end_km", "reason", "valid_until_min"}
     assert "'abc'" in errors["start_km"] and "number" in errors["start_km"]
@@ -151,7 +143,7 @@ def test_bad_values_are_422_with_a_message_per_field(client: TestClient) -> None
 def test_the_rules_of_a_line_tsr_name_the_form_field(
     client: TestClient, change: dict[str, str], field: str, says: str
 ) -> None:
-    errors = _errors(client.post("/api/tsr", json={**GOOD, **change}, headers=AUTH))
+    errors = _errors(client.post("/api/tsr", json={**TSR_FORM, **change}, headers=AUTH))
     assert list(errors) == [field]
     assert says in errors[field]
 
@@ -162,7 +154,7 @@ def test_a_body_that_is_not_a_json_object_is_refused(client: TestClient) -> None
 
 
 def test_set_then_cancel(client: TestClient, ground: FakeGround) -> None:
-    response = client.post("/api/tsr", json=GOOD, headers=AUTH)
+    response = client.post("/api/tsr", json=TSR_FORM, headers=AUTH)
     assert response.status_code == 200, response.text
     tsr = response.json()["ok"]
     assert (tsr["session"], tsr["start_km"], tsr["end_km"], tsr["limit_kmh"]) == (2, 300, 330, 40)

@@ -11,14 +11,7 @@ from railpilot.link.ground import TsrState
 from railpilot.web.fake import FakeGround
 from railpilot.web.source import DashboardSource
 
-FIELDS = {
-    "start_km": "300",
-    "end_km": "330",
-    "limit_kmh": "40",
-    "valid_from_min": "0",
-    "valid_until_min": "90",
-    "reason": "sun kink check",
-}
+from .conftest import TSR_FORM
 
 
 def test_it_is_a_dashboard_source(ground: FakeGround) -> None:
@@ -54,7 +47,7 @@ def test_the_demo_line_has_its_incidents(ground: FakeGround) -> None:
 
 
 def test_a_tsr_goes_pending_then_active_train_by_train(ground: FakeGround) -> None:
-    result = ground.set_tsr(FIELDS, "d1", ground.now_s())
+    result = ground.set_tsr(TSR_FORM, "d1", ground.now_s())
     session = result["ok"]["session"]
     trains = [d["train"] for d in result["ok"]["deliveries"]]
     assert {ground.delivery_state(session, t) for t in trains} == {TsrState.PENDING_SET}
@@ -68,7 +61,7 @@ def test_a_tsr_goes_pending_then_active_train_by_train(ground: FakeGround) -> No
 
 def test_an_invalid_form_changes_nothing(ground: FakeGround) -> None:
     version = ground.version()
-    result = ground.set_tsr({**FIELDS, "limit_kmh": "-3"}, "d1", ground.now_s())
+    result = ground.set_tsr({**TSR_FORM, "limit_kmh": "-3"}, "d1", ground.now_s())
     assert list(result) == ["errors"] and "limit_kmh" in result["errors"]
     assert [t["session"] for t in ground.snapshot(ground.now_s())["tsrs"]] == [1]
     assert ground.version() == version

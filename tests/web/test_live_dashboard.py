@@ -27,7 +27,7 @@ from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource, serve_dashboard
 
-from .conftest import START_DEADLINE_S, TOKEN, needs_chromium
+from .conftest import START_DEADLINE_S, TOKEN, TSR_FORM, needs_chromium
 
 pytestmark = needs_chromium
 
@@ -145,14 +145,7 @@ def test_dispatcher_sets_a_tsr_and_real_trains_acknowledge_it(
     page.fill("#token", TOKEN)
     page.click("#token-save")
     expect(page.locator("#token-state")).to_contain_text("token in use")
-    for name, value in {
-        "start_km": "300",
-        "end_km": "330",
-        "limit_kmh": "40",
-        "valid_from_min": "0",
-        "valid_until_min": "90",
-        "reason": "sun kink check",
-    }.items():
+    for name, value in TSR_FORM.items():
         page.fill(f"#f-{name}", value)
     page.click("#tsr-submit")
     expect(page.locator("#tsr-result")).to_contain_text("TSR 1 set", timeout=SHOWN_MS)

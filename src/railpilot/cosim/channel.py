@@ -35,6 +35,16 @@ from railpilot.units import km_post_to_m
 LOSS_CAUSES = ("random", "dead_zone", "outage")
 
 
+def _check_span(where: str, start: tuple[str, float], end: tuple[str, float], kind: str) -> None:
+    """Both ends finite and >= 0, the end beyond the start; else a ConfigError naming the
+    field (``where.name``)."""
+    for name, value in (start, end):
+        if not is_finite_number(value) or value < 0:
+            raise ConfigError(f"{where}.{name}", value, f"{kind} >= 0")
+    if end[1] <= start[1]:
+        raise ConfigError(f"{where}.{end[0]}", end[1], f"{kind} beyond {start[0]} ({start[1]})")
+
+
 @dataclass(frozen=True)
 class DeadZone:
     """A stretch of line without radio coverage, between two km posts [km]."""
@@ -43,14 +53,7 @@ class DeadZone:
     end_km: float
 
     def __post_init__(self) -> None:
-        for name in ("start_km", "end_km"):
-            value = getattr(self, name)
-            if not is_finite_number(value) or value < 0:
-                raise ConfigError(f"dead_zone.{name}", value, "a km post >= 0")
-        if self.end_km <= self.start_km:
-            raise ConfigError(
-                "dead_zone.end_km", self.end_km, f"a km post beyond start_km ({self.start_km})"
-            )
+        _check_span("dead_zone", ("start_km", self.start_km), ("end_km", self.end_km), "a km post")
 
     def holds(self, position_m: float) -> bool:
         """Whether km-post position ``position_m`` [m] is inside the zone (ends included)."""
@@ -65,12 +68,7 @@ class Outage:
     end_s: float
 
     def __post_init__(self) -> None:
-        for name in ("start_s", "end_s"):
-            value = getattr(self, name)
-            if not is_finite_number(value) or value < 0:
-                raise ConfigError(f"outage.{name}", value, "a time >= 0 [s from the start]")
-        if self.end_s <= self.start_s:
-            raise ConfigError("outage.end_s", self.end_s, f"a time after start_s ({self.start_s})")
+        _check_span("outage", ("start_s", self.start_s), ("end_s", self.end_s), "a time [s]")
 
     def holds(self, t_s: float) -> bool:
         return self.start_s <= t_s < self.end_s

@@ -33,7 +33,6 @@ import random
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
-from functools import partial
 from typing import Any, Protocol
 
 from railpilot.errors import ConfigError, is_finite_number
@@ -43,6 +42,7 @@ from railpilot.ground.dispatch import (
     DeliverTsr,
     GroundDispatch,
     SendTargetPoint,
+    command_trains,
 )
 from railpilot.line.model import RailLine
 from railpilot.link import (
@@ -54,6 +54,7 @@ from railpilot.link import (
     OnboardConfig,
     OnboardEndpoint,
     OnboardState,
+    Registered,
     RunningInfo,
     TrainDeregistered,
     TrainRecord,
@@ -204,17 +205,8 @@ class LinkSim:
     def execute(self, commands: Iterable[Command]) -> None:
         """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
         for command in commands:
-            if isinstance(command, SendTargetPoint):
-                self._deliver(command.train_id, partial(_target, command=command, now_s=self.now_s))
-            elif isinstance(command, DeliverTsr):
-                for train_id in command.train_ids:
-                    self._deliver(train_id, partial(_tsr, command=command, now_s=self.now_s))
-            elif isinstance(command, CancelTsrOn):
-                for train_id in command.train_ids:
-                    self._deliver(train_id, partial(_cancel, command=command, now_s=self.now_s))
-            else:
-                for train_id in command.train_ids:
-                    self._deliver(train_id, partial(_command, command=command, now_s=self.now_s))
+            for train_id in command_trains(command):
+                self._deliver(train_id, command)
 
     # ------------------------------------------------------------------ what a train is doing
 
@@ -417,47 +409,41 @@ class LinkSim:
         stats = self.stats[train_id]
         if isinstance(event, TsrApplied):
             stats.tsr_applied[event.tsr.session] += 1
-        elif type(event).__name__ == "Registered":
+        elif isinstance(event, Registered):
             stats.registrations += 1
 
-    def _deliver(self, train_id: int, apply: Callable[[Any], None]) -> None:
+    def _deliver(self, train_id: int, command: Command) -> None:
         """On the train's live connection, else into its record for the next
         registration (as ``GroundServer._deliver``)."""
         conn = self.live.get(train_id)
         if conn is not None and conn.open and conn.ground.train_id == train_id:
-            apply(conn.ground)
+            _apply(conn.ground, command, self.now_s)
             self._after_ground(conn)
             return
         record = self.records.get(train_id)
         if record is None:
             record = self.records[train_id] = TrainRecord(train_id)
-        apply(record)
+        _apply(record, command, self.now_s)
 
 
-def _tsr(dest: Any, command: DeliverTsr, now_s: float) -> None:
+def _apply(dest: GroundEndpoint | TrainRecord, command: Command, now_s: float) -> None:
+    """Carry out ``command`` on a train's live endpoint (sent now) or on its record (sent
+    on its next registration), as ``GroundServer``'s delivery methods do."""
     if isinstance(dest, GroundEndpoint):
-        dest.set_tsr(command.tsr.message, now_s)
-    else:
+        if isinstance(command, DeliverTsr):
+            dest.set_tsr(command.tsr.message, now_s)
+        elif isinstance(command, CancelTsrOn):
+            dest.cancel_tsr(command.session, now_s)
+        elif isinstance(command, SendTargetPoint):
+            dest.send_target_point(command.target, now_s)
+        else:
+            dest.send_dispatch_command(command.command, now_s)
+    elif isinstance(command, DeliverTsr):
         dest.add_tsr(command.tsr.message)
-
-
-def _cancel(dest: Any, command: CancelTsrOn, now_s: float) -> None:
-    if isinstance(dest, GroundEndpoint):
-        dest.cancel_tsr(command.session, now_s)
-    else:
+    elif isinstance(command, CancelTsrOn):
         dest.cancel_tsr(command.session)
-
-
-def _target(dest: Any, command: SendTargetPoint, now_s: float) -> None:
-    if isinstance(dest, GroundEndpoint):
-        dest.send_target_point(command.target, now_s)
-    else:
+    elif isinstance(command, SendTargetPoint):
         dest.add_target_point(command.target)
-
-
-def _command(dest: Any, command: Any, now_s: float) -> None:
-    if isinstance(dest, GroundEndpoint):
-        dest.send_dispatch_command(command.command, now_s)
     else:
         dest.add_dispatch_command(command.command)
 

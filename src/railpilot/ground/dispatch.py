@@ -111,6 +111,11 @@ class SendDispatchCommand:
 Command = DeliverTsr | CancelTsrOn | SendTargetPoint | SendDispatchCommand
 
 
+def command_trains(command: Command) -> tuple[int, ...]:
+    """The trains a command goes to."""
+    return (command.train_id,) if isinstance(command, SendTargetPoint) else command.train_ids
+
+
 @dataclass(frozen=True)
 class Outcome:
     """What an operation did: a JSON-ready ``result`` and the commands to carry out."""

@@ -39,6 +39,7 @@ from railpilot.ground.dispatch import (
     GroundDispatch,
     Outcome,
     SendTargetPoint,
+    command_trains,
     restriction_from_view,
     restriction_view,
 )
@@ -300,21 +301,17 @@ class DispatchHost:
             return s.send_target_point(train_ids, command.target, actor=command.actor)
         return s.send_dispatch_command(train_ids, command.command, actor=command.actor)
 
-    @staticmethod
-    def _train_ids(command: Command) -> tuple[int, ...]:
-        return (command.train_id,) if isinstance(command, SendTargetPoint) else command.train_ids
-
     def _carry_out(self, commands: list[Command]) -> dict[int, str]:
         results: dict[int, str] = {}
         for command in commands:
-            results |= self._send(command, list(self._train_ids(command)))
+            results |= self._send(command, list(command_trains(command)))
         self._log_errors(results)
         return results
 
     async def _carry_out_paced(self, commands: tuple[Command, ...]) -> dict[int, str]:
         results: dict[int, str] = {}
         for command in commands:
-            ids = self._train_ids(command)
+            ids = command_trains(command)
             for start in range(0, len(ids), BATCH):
                 results |= self._send(command, list(ids[start : start + BATCH]))
                 await asyncio.sleep(0)
