@@ -26,6 +26,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.demo",
     "railpilot.commands.link",
     "railpilot.commands.drive",
+    "railpilot.commands.line",
 )
 
 

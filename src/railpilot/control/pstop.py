@@ -297,6 +297,14 @@ def pstop_step(
         if stopping:
             u_stop = _stop_command(params, x, v, model, net, step, lo, hi)
             u = u_stop
+            if u_stop > 0.0:
+                # the stop needs pull, not brake: a light train climbing to its stop. A
+                # held pull is ill-conditioned there (near the balance of pull and
+                # gradient the train creeps for minutes; where the gradient eases the
+                # stop jumps from short to far beyond), and there is no slow brake to
+                # lead: follow the planned curve, which brakes to the point at its rate
+                # (docs/precise-stop.md, "Climbing to a stop")
+                u = u_track
     u_out = min(max(u, lo), hi)
 
     x_stop = math.nan

@@ -46,6 +46,8 @@ from railpilot.ground.dispatch import (
 )
 from railpilot.line.model import RailLine
 from railpilot.link import (
+    Deregistered,
+    DeregisterReason,
     Event,
     GroundConfig,
     GroundEndpoint,
@@ -186,6 +188,8 @@ class LinkSim:
         self._queue: list[tuple[float, int, str, Any]] = []
         self._order = itertools.count()  # ties keep the order they were queued in
         self._deadline: dict[tuple[str, int], float] = {}
+        #: trains that have left the line (:meth:`retire`): they never connect again
+        self.retired: set[int] = set()
         for train_id, train in self.trains.items():
             self._push(self.start_s + train.start_s, "connect", train_id)
         self._push(self.start_s + tick_s, "dispatch_tick", None)
@@ -201,6 +205,23 @@ class LinkSim:
             self.now_s = at
             getattr(self, f"_on_{kind}")(item)
         self.now_s = max(self.now_s, end)
+
+    def call_at(self, t_s: float, action: Callable[[], None]) -> None:
+        """Run ``action`` at ``t_s`` seconds after the start of the run, in its turn among
+        the events (a scenario's TSR, a failure, the trackside's signals)."""
+        self._push(self.start_s + t_s, "call", action)
+
+    def retire(self, train_id: int) -> None:
+        """The train leaves the line now: it deregisters (leaving the main line) if it is
+        registered, and never connects again."""
+        self.retired.add(train_id)
+        onboard = self.onboard[train_id]
+        serial = self._serial_of(train_id)
+        if onboard.state is OnboardState.REGISTERED and serial is not None:
+            onboard.deregister(DeregisterReason.LEAVING_MAIN_LINE, self.now_s)
+            self._after_onboard(train_id, serial)
+        elif serial is not None:
+            self._close(self._connections[serial], failure=False)
 
     def execute(self, commands: Iterable[Command]) -> None:
         """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
@@ -261,7 +282,12 @@ class LinkSim:
 
     # ------------------------------------------------------------------ events
 
+    def _on_call(self, action: Callable[[], None]) -> None:
+        action()
+
     def _on_connect(self, train_id: int) -> None:
+        if train_id in self.retired:
+            return
         stats = self.stats[train_id]
         stats.connect_attempts += 1
         onboard = self.onboard[train_id]
@@ -342,15 +368,16 @@ class LinkSim:
         data = onboard.data_to_send()
         if data and serial is not None:
             self._send("up", train_id, serial, data)
-        failed = False
+        failed = left = False
         listener = self.trains[train_id].on_event
         for event in onboard.events():
             self._count_onboard(train_id, event)
             if listener is not None:
                 listener(event, self.now_s)
             failed |= isinstance(event, LinkFailed)
-        if failed and serial is not None:
-            self._close(self._connections[serial])
+            left |= isinstance(event, Deregistered)
+        if (failed or left) and serial is not None:
+            self._close(self._connections[serial], failure=failed)
         self._schedule("onboard", train_id, onboard.next_deadline_s())
 
     def _after_ground(self, conn: _Connection) -> None:
@@ -384,8 +411,9 @@ class LinkSim:
         if arrival is not None:
             self._push(arrival, "to_ground" if direction == "up" else "to_train", (serial, data))
 
-    def _close(self, conn: _Connection) -> None:
-        """Close a connection at both ends (module docstring) and plan the reconnect."""
+    def _close(self, conn: _Connection, *, failure: bool = True) -> None:
+        """Close a connection at both ends (module docstring) and plan the reconnect
+        (``failure=False``: a train that left the line, closed and not counted)."""
         if not conn.open:
             return
         conn.open = False
@@ -399,9 +427,11 @@ class LinkSim:
         onboard = self.onboard[conn.train_id]
         if onboard.state is not OnboardState.DISCONNECTED:
             onboard.connection_lost(self.now_s)
-        self.stats[conn.train_id].link_failures += 1
+        self.stats[conn.train_id].link_failures += int(failure)
         for event in onboard.events():
             self._count_onboard(conn.train_id, event)
+        if conn.train_id in self.retired:
+            return
         delay = onboard.reconnect_delay_s(self._jitter[conn.train_id].random())
         self._push(self.now_s + delay, "connect", conn.train_id)
 

@@ -114,8 +114,31 @@ def heavy_haul_loaded() -> TrainPreset:
     return TrainPreset("heavy-haul-loaded", "freight_loaded", train, brake)
 
 
+def heavy_haul_empty() -> TrainPreset:
+    """The same train returning empty: one HXD1 and 100 C80 wagons at their tare.
+
+    An assumption (paper 001 gives no empty train): 100 wagons of 20 t tare and the
+    locomotive's 200 t make 2,200 t on the same 1,600 m. Davis resistance is specific
+    [N/kN]: the rolling terms are kept, the air term is scaled up by the mass ratio so that
+    the aerodynamic force is the loaded train's (the same frontal area and length). The
+    heavy-haul line's ``freight_empty`` limits.
+    """
+    loaded = heavy_haul_loaded()
+    mass_ratio = loaded.train.mass_kg / 2_200e3
+    train = Train(
+        mass_kg=2_200e3,
+        rotating_mass_factor=0.08,
+        length_m=1600.0,
+        davis_a0=loaded.train.davis_a0,
+        davis_a1=loaded.train.davis_a1,
+        davis_a2=loaded.train.davis_a2 * mass_ratio,
+        max_service_decel_mps2=0.5,
+    )
+    return TrainPreset("heavy-haul-empty", "freight_empty", train, loaded.brake)
+
+
 #: the trains ``railpilot drive --train`` knows
-TRAINS = {"heavy-haul-loaded": heavy_haul_loaded}
+TRAINS = {"heavy-haul-loaded": heavy_haul_loaded, "heavy-haul-empty": heavy_haul_empty}
 
 
 def train_preset(name: str) -> TrainPreset:
@@ -289,7 +312,9 @@ def drive(
     ``margin_kmh``: the plan's ceiling is ``max(C - margin, C / 2)`` of the whole-train
     MRSP ``C``.
     """
-    route = _route(line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s)
+    route = station_route(
+        line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s
+    )
     direction, departure = route.direction, route.departure_m
     mrsp = route.mrsp_at(0.0)
     end_s, quickest_sec = route.section_from(mrsp, 0.0, 0.0)
@@ -308,7 +333,7 @@ def drive(
         if route.entry_ahead(tsr, 0.0)
     ]
     stepper = Stepper(
-        _drive_scenario(preset, route.vehicle_line, planned, dt_s),
+        drive_scenario(preset, route.vehicle_line, planned, dt_s),
         stop_controller(preset, route.vehicle_line, end_s, dt_s),
     )
     timeline = [(0.0, mrsp)]
@@ -375,11 +400,11 @@ def departure_section(
     """The planner's section of a station pair as the train departs with no TSR or target
     point: the whole-train MRSP of the static limits less the margin (the ground asks the
     planner for its energy-time curves with it, ground/energy.py)."""
-    route = _route(line, preset, from_station, to_station, margin_kmh, (), (), 0.0)
+    route = station_route(line, preset, from_station, to_station, margin_kmh, (), (), 0.0)
     return route.section_from(route.mrsp_at(0.0), 0.0, 0.0)[1]
 
 
-def _route(
+def station_route(
     line: RailLine,
     preset: TrainPreset,
     from_station: int,
@@ -388,7 +413,7 @@ def _route(
     tsrs: tuple[TsrRequest, ...],
     targets: tuple[TargetRequest, ...],
     start_time_s: float,
-) -> _Route:
+) -> StationRoute:
     if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
         raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
     start = line.station(from_station)
@@ -397,7 +422,7 @@ def _route(
     if end.id == start.id:
         raise ConfigError("--to", to_station, "a station other than --from")
     departure, arrival = start.stop_m(direction), end.stop_m(direction)
-    return _Route(
+    return StationRoute(
         line,
         preset,
         direction,
@@ -425,7 +450,7 @@ def _what_changed(before: Mrsp, after: Mrsp, tsr_received: bool) -> str:
 
 
 @dataclass(frozen=True)
-class _Route:
+class StationRoute:
     """One station pair as the onboard sees it: the line, the train, what it is told."""
 
     line: RailLine
@@ -690,8 +715,13 @@ def _tsr_check(
     return out | _check_fields(check, direction, departure_m)
 
 
-def _drive_scenario(
-    preset: TrainPreset, vehicle_line: Line, planned: PlannedCurve, dt_s: float
+def drive_scenario(
+    preset: TrainPreset,
+    vehicle_line: Line,
+    planned: PlannedCurve,
+    dt_s: float,
+    duration_s: float | None = None,
+    record_every: int = 1,
 ) -> Scenario:
     """The simulation core driving the planned curve: the ATO tracks it by distance with
     the precise-stop controller (control/pstop.py) and stops at its end."""
@@ -711,7 +741,11 @@ def _drive_scenario(
         ),
         controller=ControllerSpec(name="pstop"),
         # room for a wait at a target point and the plans after it
-        sim=SimSettings(dt_s=dt_s, duration_s=max(900.0, 2.5 * planned.running_time_s)),
+        sim=SimSettings(
+            dt_s=dt_s,
+            duration_s=duration_s or max(900.0, 2.5 * planned.running_time_s),
+            record_every=record_every,
+        ),
     )
 
 

@@ -27,6 +27,7 @@ from railpilot.sim.layout import (
     C_MOVING,
     C_N_RECORDS,
     C_STEPS_RUN,
+    C_STOP_T,
     C_V,
     C_X,
 )
@@ -73,6 +74,11 @@ class Stepper:
     @property
     def speed_mps(self) -> float:
         return float(self._state.c[C_V])
+
+    @property
+    def stop_time_s(self) -> float:
+        """When the train came to its last stop [s] (nan: it has not stopped)."""
+        return float(self._state.c[C_STOP_T])
 
     @property
     def at_rest(self) -> bool:

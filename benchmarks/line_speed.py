@@ -1,0 +1,87 @@
+"""Benchmark: a whole line (cosim/line_run.py) on the 590 km heavy-haul line.
+
+``--trains`` trains (default 60) over ``--hours`` (default 9): half loaded from Shenchi
+South (1) to Huanghua Port (20), half empty the other way, departing in turn every
+``9 h / (trains / 2)`` in each direction (at most every 15 min); every train driven by the
+onboard driving system and the simulation core, the ground's dispatch core and the full
+protocol (HMAC-SHA256 on every frame) over the simulated radio, the trackside watching
+every second. Seeded: the same run every time.
+
+Prints one JSON object: ``sim_s`` (simulated), ``wall_s``, ``realtime_factor``
+(sim_s / wall_s), ``train_hours`` (hours of trains on the line), ``wall_ms_per_train_hour``,
+and the run's safety KPIs. Issue 12's goal: a realtime factor of at least 500 for 60
+trains over 9 h on a 2-core machine. It is reported, never asserted.
+
+The first run of a process compiles the simulation core (numba, a few seconds); it is
+done before the clock starts (a short warm-up run).
+
+Usage: python benchmarks/line_speed.py [--trains 60] [--hours 9] [--loss 0.0]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+
+from railpilot.cosim.line_run import run_line
+from railpilot.cosim.scenario import scenario_from_mapping
+
+
+def scenario(trains: int, hours: float, loss: float, seed: int) -> dict:
+    per_direction = max(trains // 2, 1)
+    every = max(15.0, hours * 60.0 / per_direction)
+    service = {"first_departure_min": 5.0, "every_min": every, "count": per_direction}
+    services = [
+        service | {"kind": "loaded", "from": 1, "to": 20, "first_id": 101},
+        service | {"kind": "empty", "from": 20, "to": 1, "first_id": 2001},
+    ]
+    if trains == 1:
+        services = services[:1]
+    return {
+        "name": f"line speed, {trains} trains, {hours:g} h",
+        "line": "heavy-haul",
+        "seed": seed,
+        "duration_h": hours,
+        "channel": {"loss": loss},
+        "services": services,
+    }
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--trains", type=int, default=60)
+    parser.add_argument("--hours", type=float, default=9.0)
+    parser.add_argument("--loss", type=float, default=0.0, help="frame loss (0..0.99)")
+    parser.add_argument("--seed", type=int, default=1)
+    args = parser.parse_args()
+    run_line(scenario_from_mapping(scenario(1, 0.05, 0.0, args.seed)))  # compile the core
+    result = run_line(
+        scenario_from_mapping(scenario(args.trains, args.hours, args.loss, args.seed))
+    )
+    kpis = result.kpis()
+    train_hours = sum(
+        (rows[-1, 0] - rows[0, 0]) / 3600.0 for rows in result.trace.values() if len(rows)
+    )
+    print(
+        json.dumps(
+            {
+                "trains": args.trains,
+                "hours": args.hours,
+                "loss": args.loss,
+                "sim_s": result.sim_s,
+                "wall_s": round(result.wall_s, 2),
+                "realtime_factor": round(result.sim_s / result.wall_s, 1),
+                "train_hours": round(train_hours, 1),
+                "wall_ms_per_train_hour": round(1e3 * result.wall_s / max(train_hours, 1e-9), 1),
+                "tsr_violations": kpis["tsr_violations"],
+                "target_points_passed": kpis["target_points_passed"],
+                "frames_received": sum(
+                    kpis["link"][end].get("frames_received", 0) for end in ("ground", "onboard")
+                ),
+            }
+        )
+    )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,181 @@
+"""``railpilot line simulate SCENARIO``: a whole line, trains, ground and radio together,
+in simulated time, with paper 001's KPIs (docs/line-run.md)."""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+from pathlib import Path
+from typing import Any
+
+from railpilot.commands._common import log, print_json
+from railpilot.errors import ConfigError
+
+#: the KPIs a sweep gives the distribution of (dotted paths into ``LineResult.kpis()``)
+SWEPT = (
+    "conformity_pct.mean_end_to_end",
+    "conformity_pct.mean_abs_section",
+    "energy_kwh",
+    "red_signal_stops",
+    "tsr_violations",
+    "target_points_passed",
+    "tsr_applied_twice",
+    "link.link_failures",
+    "link.connects",
+    "realtime_factor",
+)
+
+
+def register(subparsers: argparse._SubParsersAction) -> None:
+    line = subparsers.add_parser(
+        "line",
+        help="a whole line: trains, ground and radio together",
+        description="Run a line scenario (docs/line-run.md).",
+    )
+    sub = line.add_subparsers(dest="line_command", metavar="ACTION")
+    sub.required = True
+    p = sub.add_parser(
+        "simulate",
+        help="co-simulate a line scenario in simulated time and print its KPIs",
+        description="Co-simulate SCENARIO: every train's onboard driving system and "
+        "simulation core, the ground's dispatch core, and the safety link between them over "
+        "a simulated radio, in simulated time. Prints paper 001's KPIs, against the baseline "
+        "(the same day driven without advice). With --runs N, sweeps N seeds (locally on "
+        "all cores, or on a Dask cluster with --scheduler) and prints each KPI's spread.",
+    )
+    p.add_argument("scenario", type=Path, help="line-run TOML file (examples/heavy_haul_day.toml)")
+    p.add_argument("--seed", type=int, help="seed (default: the file's)")
+    p.add_argument("--runs", type=int, default=1, help="seeds to sweep (default 1)")
+    p.add_argument("--no-baseline", action="store_true", help="skip the baseline run")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler for --runs")
+    p.add_argument("--out", type=Path, help="folder for the time-distance figure")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    from railpilot.cosim.line_run import run_line
+    from railpilot.cosim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    seed = scenario.seed if args.seed is None else args.seed
+    if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:
+        raise ConfigError("--runs", args.runs, "a number of runs in [1, 100000]")
+    if not 0 <= seed < 2**63 - args.runs:
+        raise ConfigError("--seed", seed, "a seed >= 0")
+    if args.runs > 1:
+        out = sweep(args.scenario, seed, args.runs, args.scheduler)
+    else:
+        result = run_line(scenario, seed=seed)
+        log(f"{scenario.name}: {result.sim_s:.0f} s simulated in {result.wall_s:.1f} s")
+        baseline = None
+        if not args.no_baseline:
+            baseline = run_line(scenario, seed=seed, advised=False)
+            log(f"baseline: {baseline.wall_s:.1f} s")
+        out = result.kpis(baseline)
+        if args.out is not None:
+            from railpilot.report.figure import save_figure
+            from railpilot.report.line_plots import time_distance
+
+            args.out.mkdir(parents=True, exist_ok=True)
+            path = args.out / "time_distance.png"
+            save_figure(time_distance(result, baseline), path)
+            out["files"] = [str(path)]
+    if args.json:
+        print_json(out)
+    else:
+        _print_text(out)
+    return 0
+
+
+def _sweep_run(path: str, seed: int) -> dict[str, Any]:
+    """One seed of a sweep (in a worker: it reads the file itself)."""
+    from railpilot.cosim.line_run import run_line
+    from railpilot.cosim.scenario import load_scenario
+
+    return run_line(load_scenario(path), seed=seed).kpis()
+
+
+def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, Any]:
+    """``runs`` seeds from ``seed`` on, and the spread of each KPI (:data:`SWEPT`)."""
+    seeds = list(range(seed, seed + runs))
+    started = time.perf_counter()
+    if scheduler is None:
+        import multiprocessing
+        import os
+        from concurrent.futures import ProcessPoolExecutor
+
+        workers = min(os.cpu_count() or 1, runs)
+        context = multiprocessing.get_context("spawn")
+        with ProcessPoolExecutor(workers, mp_context=context) as pool:
+            results = list(pool.map(_sweep_run, [str(path)] * runs, seeds))
+    else:
+        from dask.distributed import Client
+
+        with Client(scheduler) as client:
+            futures = client.map(_sweep_run, [str(path)] * runs, seeds, pure=False)
+            results = client.gather(futures)
+    out: dict[str, Any] = {
+        "scenario": results[0]["scenario"],
+        "runs": runs,
+        "seeds": [seeds[0], seeds[-1]],
+        "wall_s": round(time.perf_counter() - started, 2),
+        "kpis": {},
+        "runs_with_tsr_violations": sum(1 for r in results if r["tsr_violations"]),
+        "runs_with_target_points_passed": sum(1 for r in results if r["target_points_passed"]),
+    }
+    for key in SWEPT:
+        values = [v for v in (_dig(r, key) for r in results) if v is not None]
+        if values:
+            values.sort()
+            out["kpis"][key] = {
+                "min": values[0],
+                "p5": _quantile(values, 0.05),
+                "median": _quantile(values, 0.5),
+                "p95": _quantile(values, 0.95),
+                "max": values[-1],
+                "mean": round(sum(values) / len(values), 4),
+            }
+    return out
+
+
+def _dig(obj: dict[str, Any], dotted: str) -> float | None:
+    for part in dotted.split("."):
+        if not isinstance(obj, dict) or part not in obj:
+            return None
+        obj = obj[part]
+    return obj if isinstance(obj, int | float) else None
+
+
+def _quantile(sorted_values: list[float], q: float) -> float:
+    """The ``q`` quantile, linear between order statistics (numpy's default)."""
+    pos = q * (len(sorted_values) - 1)
+    low = math.floor(pos)
+    high = min(low + 1, len(sorted_values) - 1)
+    return round(sorted_values[low] + (sorted_values[high] - sorted_values[low]) * (pos - low), 4)
+
+
+def _print_text(out: dict[str, Any]) -> None:
+    if "kpis" in out:
+        print(f"{out['scenario']}: {out['runs']} runs, seeds {out['seeds'][0]}-{out['seeds'][1]}")
+        for key, stats in out["kpis"].items():
+            print(
+                f"  {key:34s} min {stats['min']:>10} median {stats['median']:>10}"
+                f" max {stats['max']:>10}"
+            )
+        print(f"  runs with TSR violations: {out['runs_with_tsr_violations']}")
+        print(f"  runs with target points passed: {out['runs_with_target_points_passed']}")
+        return
+    print(
+        f"{out['scenario']} (seed {out['seed']}): {len(out['trains'])} trains, {out['sim_s']:.0f} s"
+    )
+    conformity = out["conformity_pct"]
+    print(f"  conformity end to end: mean {conformity['mean_end_to_end']} %")
+    line = f"  energy: {out['energy_kwh']} kWh"
+    if "baseline_energy_kwh" in out:
+        line += f" (baseline {out['baseline_energy_kwh']} kWh)"
+    print(line)
+    for key in ("red_signal_stops", "tsr_violations", "target_points_passed"):
+        print(f"  {key.replace('_', ' ')}: {out[key]}")
+    print(f"  link failures: {out['link']['link_failures']}, connects: {out['link']['connects']}")

@@ -1,0 +1,420 @@
+"""A whole line in simulated time: trains, ground and radio together, and what it gives
+(paper 001's KPIs; issue 12; docs/line-run.md).
+
+:func:`run_line` puts a scenario's trains (:class:`~railpilot.cosim.driver.TrainDriver`,
+the onboard driving system and the simulation core) and the ground (the dispatch core and
+its link endpoints) into one :class:`~railpilot.cosim.link_sim.LinkSim`, plays the
+scenario's events, and watches the line from the trackside once a second: where every
+train is, the signals' aspects (the cab signal each train sees), and every TSR and red
+signal against what the trains do. The KPIs come from what was watched, not from what
+the trains or the ground believe.
+
+KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
+
+``conformity_pct``
+    running-time conformity ``(actual - planned) / planned * 100`` per section and end to
+    end (the origin's departure to the destination's arrival), per train and overall.
+``energy_kwh``
+    net traction energy (traction less regeneration) per train and in total;
+    ``baseline_energy_kwh`` is the same day driven by the baseline (no advice, no
+    re-timing: :func:`run_line` with ``advised=False``).
+``red_signal_stops``
+    the trains' stops at red signals (at rest short of the station).
+``tsr_violations``
+    (train, TSR) pairs where the head or the tail was in the restricted stretch, during
+    its validity, faster than the limit, at any sample (every second).
+``target_points_passed``
+    signals a train's head passed while the block beyond was held by another train (at
+    red), checked every second against the previous second's occupancy.
+``link``
+    the link's counters (frames, losses by cause, resends, timeouts, rejections by check).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from railpilot.ground.occupancy import (
+    Occupancy,
+    TrainReport,
+    compute_occupancy,
+    direction_sign,
+)
+from railpilot.ground.operations import SetTsr
+from railpilot.ground.targets import find_target
+from railpilot.line.model import UP
+from railpilot.link import OnboardConfig
+from railpilot.net.loadtest import loadtest_keys
+
+from .driver import TrainDriver
+from .link_sim import LinkSim, SimTrain
+from .scenario import LineScenario, ScenarioEvent, TrainFailure
+
+#: how often the trackside looks [s] (the link's cycle)
+WATCH_S = 1.0
+#: how many block sections ahead a cab signal shows (3-aspect signalling: the next
+#: signal's aspect tells whether the one after it is red)
+CAB_SIGNAL_BLOCKS = 2
+#: the onboard powers up this long before its first departure [s]
+POWER_ON_LEAD_S = 120.0
+#: over a limit by more than this is a violation [m/s] (the speed sensor's resolution)
+OVERSPEED_TOLERANCE_MPS = 0.01
+
+
+@dataclass
+class _TsrWatch:
+    """A TSR as the dispatcher set it: the truth the trains are checked against."""
+
+    start_m: float
+    end_m: float
+    limit_mps: float
+    valid_from_s: float  # epoch
+    valid_until_s: float
+    session: int
+
+
+@dataclass
+class LineResult:
+    """One run of a line scenario: the drivers (their sections), the trackside's samples,
+    the link's counters, and the KPIs (:meth:`kpis`)."""
+
+    scenario: LineScenario
+    seed: int
+    advised: bool
+    drivers: dict[int, TrainDriver]
+    trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
+    tsr_violations: list[dict[str, Any]]
+    signals_passed_at_red: list[dict[str, Any]]
+    link: dict[str, Any]
+    tsr_applied: dict[int, dict[int, int]]  # train -> session -> times applied
+    wall_s: float
+    events: list[dict[str, Any]] = field(default_factory=list)
+
+    @property
+    def sim_s(self) -> float:
+        return self.scenario.duration_s
+
+    def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
+        """The KPI object of ``railpilot line simulate --json`` (module docstring)."""
+        trains: dict[str, Any] = {}
+        all_sections: list[float] = []
+        end_to_end: list[float] = []
+        total_energy = 0.0
+        for train_id, driver in sorted(self.drivers.items()):
+            sections = driver.sections
+            per_section = [
+                _conformity(s.running_time_s, s.planned_running_time_s) for s in sections
+            ]
+            all_sections += per_section
+            energy = sum(s.energy_traction_kwh - s.energy_regenerated_kwh for s in sections)
+            total_energy += energy
+            row: dict[str, Any] = {
+                "number": driver.service.number,
+                "kind": driver.service.kind,
+                "sections_run": len(sections),
+                "sections_planned": len(driver.service.stops) - 1,
+                "finished": driver.finished,
+                "conformity_pct": {
+                    "sections": [round(c, 3) for c in per_section],
+                    "end_to_end": None,
+                },
+                "energy_kwh": round(energy, 1),
+                "energy_traction_kwh": round(sum(s.energy_traction_kwh for s in sections), 1),
+                "energy_regenerated_kwh": round(sum(s.energy_regenerated_kwh for s in sections), 1),
+                "red_signal_stops": driver.red_signal_stops,
+                "arrival_delay_s": None,
+            }
+            if sections:
+                planned = sections[-1].planned_arrival_s - sections[0].planned_departure_s
+                actual = sections[-1].arrival_s - sections[0].departure_s
+                e2e = _conformity(actual, planned)
+                end_to_end.append(e2e)
+                row["conformity_pct"]["end_to_end"] = round(e2e, 3)
+                row["arrival_delay_s"] = round(
+                    sections[-1].arrival_s - sections[-1].planned_arrival_s, 1
+                )
+            trains[str(train_id)] = row
+        out: dict[str, Any] = {
+            "scenario": self.scenario.name,
+            "seed": self.seed,
+            "driver": "advised" if self.advised else "baseline",
+            "sim_s": self.sim_s,
+            "trains": trains,
+            "conformity_pct": {
+                "mean_end_to_end": _mean(end_to_end),
+                "mean_abs_section": _mean([abs(c) for c in all_sections]),
+                "max_section": max(all_sections, default=None),
+            },
+            "energy_kwh": round(total_energy, 1),
+            "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
+            "tsr_violations": len(self.tsr_violations),
+            "target_points_passed": len(self.signals_passed_at_red),
+            "tsr_applied_twice": sum(
+                1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
+            ),
+            "link": self.link,
+            "wall_s": round(self.wall_s, 3),
+            "realtime_factor": round(self.sim_s / self.wall_s, 1) if self.wall_s > 0 else None,
+        }
+        if baseline is not None:
+            out["baseline_energy_kwh"] = baseline.kpis()["energy_kwh"]
+            base = baseline.kpis()
+            out["baseline"] = {
+                k: base[k]
+                for k in (
+                    "conformity_pct",
+                    "energy_kwh",
+                    "red_signal_stops",
+                    "tsr_violations",
+                    "target_points_passed",
+                )
+            }
+        return out
+
+
+def _conformity(actual_s: float, planned_s: float) -> float:
+    return (actual_s - planned_s) / planned_s * 100.0
+
+
+def _mean(values: list[float]) -> float | None:
+    return round(float(np.mean(values)), 3) if values else None
+
+
+def run_line(
+    scenario: LineScenario,
+    *,
+    seed: int | None = None,
+    advised: bool = True,
+    until_s: float | None = None,
+    on_watch: Callable[[LinkSim, float], None] | None = None,
+) -> LineResult:
+    """Run ``scenario`` (its seed unless ``seed``) with the advised driving system, or the
+    baseline (``advised=False``), to its end (or ``until_s``)."""
+    seed = scenario.seed if seed is None else seed
+    line = scenario.line
+    epoch = scenario.epoch_s
+    drivers: dict[int, TrainDriver] = {}
+    trains = []
+    for service in scenario.services:
+        power_on = max(service.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
+        driver = TrainDriver(
+            line, service, epoch, power_on, advised=advised, margin_kmh=scenario.margin_kmh
+        )
+        drivers[service.train_id] = driver
+        config = OnboardConfig(
+            train_id=service.train_id,
+            ground_id=1,
+            train_number=service.number,
+            loco_number=f"HXD1{service.train_id % 10000:04d}",
+            driver_id=service.train_id,
+            train_length_m=driver.preset.train.length_m,
+        )
+        trains.append(SimTrain(config, driver, power_on, driver.on_event))
+    ids = [s.train_id for s in scenario.services]
+    keys = loadtest_keys(seed, range(min(ids), max(ids) + 1))
+    sim = LinkSim(line, trains, scenario.channel, keys, seed=seed, start_s=epoch)
+    watch = _Trackside(sim, drivers, on_watch)
+    events: list[dict[str, Any]] = []
+    for event in scenario.events:
+        sim.call_at(event.at_s, _event_action(sim, drivers, watch, event, events))
+    sim.call_at(WATCH_S, watch)
+    started = time.perf_counter()
+    end = scenario.duration_s if until_s is None else min(until_s, scenario.duration_s)
+    sim.run_until(end)
+    wall = time.perf_counter() - started
+    return LineResult(
+        scenario,
+        seed,
+        advised,
+        drivers,
+        {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in watch.trace.items()},
+        watch.tsr_violations,
+        watch.passed_at_red,
+        sim.link_report(),
+        {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
+        wall,
+        events,
+    )
+
+
+def _event_action(
+    sim: LinkSim,
+    drivers: dict[int, TrainDriver],
+    watch: _Trackside,
+    event: ScenarioEvent,
+    log: list[dict[str, Any]],
+) -> Callable[[], None]:
+    def act() -> None:
+        t = sim.now_s - sim.start_s
+        action = event.action
+        entry: dict[str, Any] = {"t_s": t, "event": event.label}
+        if isinstance(action, TrainFailure):
+            driver = drivers[action.train_id]
+            driver.fail(t)
+            sim.call_at(t + action.stand_s, lambda: driver.recover(sim.now_s - sim.start_s))
+            entry["train"] = action.train_id
+        else:
+            outcome = sim.dispatch.execute(action, "scenario", sim.now_s)
+            sim.execute(outcome.commands)
+            entry["result"] = outcome.result
+            if isinstance(action, SetTsr):
+                session = int(outcome.result["session"])
+                entry["tsr"] = {
+                    "session": session,
+                    "start_km": action.start_m / 1000.0,
+                    "end_km": action.end_m / 1000.0,
+                    "limit_kmh": round(action.limit_mps * 3.6, 1),
+                    "from_s": action.valid_from_s - sim.start_s,
+                    "until_s": action.valid_until_s - sim.start_s,
+                }
+                watch.tsrs.append(
+                    _TsrWatch(
+                        action.start_m,
+                        action.end_m,
+                        action.limit_mps,
+                        action.valid_from_s,
+                        action.valid_until_s,
+                        session,
+                    )
+                )
+        log.append(entry)
+
+    return act
+
+
+class _Trackside:
+    """What the line's own equipment sees once a second (module docstring): every
+    train's true position, the signals' aspects, the TSRs and red signals obeyed."""
+
+    def __init__(
+        self,
+        sim: LinkSim,
+        drivers: dict[int, TrainDriver],
+        on_watch: Callable[[LinkSim, float], None] | None,
+    ) -> None:
+        self.sim = sim
+        self.drivers = drivers
+        self.on_watch = on_watch
+        self.trace: dict[int, list[tuple[float, float, float]]] = {i: [] for i in drivers}
+        self.tsrs: list[_TsrWatch] = []
+        self.tsr_violations: list[dict[str, Any]] = []
+        self._violated: set[tuple[int, int]] = set()
+        self.passed_at_red: list[dict[str, Any]] = []
+        self._last: dict[int, float] = {}  # train -> head km post at the last look
+        self._occupancy: Occupancy | None = None
+        self._retired: set[int] = set()
+
+    def __call__(self) -> None:
+        sim = self.sim
+        line = sim.line
+        t = sim.now_s - sim.start_s
+        reports = []
+        heads: dict[int, tuple[float, float]] = {}
+        for train_id, driver in self.drivers.items():
+            if train_id in self._retired or t < driver.power_on_s:
+                continue
+            head, speed = driver.at(t)
+            if driver.finished:
+                # arrived at its destination: it leaves the line and the ground
+                self._retired.add(train_id)
+                sim.retire(train_id)
+                continue
+            heads[train_id] = (head, speed)
+            self.trace[train_id].append((t, head, speed))
+            length = driver.preset.train.length_m
+            reports.append(TrainReport(train_id, head, driver.direction, length, sim.now_s))
+            self._check_tsrs(train_id, driver, head, speed, t)
+        occupancy = compute_occupancy(line, reports, sim.now_s)
+        previous = self._occupancy
+        for train_id, (head, _) in heads.items():
+            driver = self.drivers[train_id]
+            if previous is not None and train_id in self._last:
+                self._check_signals(train_id, driver, self._last[train_id], head, previous, t)
+            self._last[train_id] = head
+            driver.cab_signal(*self._cab_view(occupancy, train_id, driver), t)
+        self._occupancy = occupancy
+        if self.on_watch is not None:
+            self.on_watch(sim, t)
+        sim.call_at(t + WATCH_S, self)
+
+    def _cab_view(
+        self, occupancy: Any, train_id: int, driver: TrainDriver
+    ) -> tuple[float | None, float]:
+        """What the train's cab signal shows: the red signal within sight (or None), and
+        the km post of the last signal in sight (``CAB_SIGNAL_BLOCKS`` ahead) [m]."""
+        line = self.sim.line
+        sections = line.block_sections_for(driver.direction)
+        me = occupancy.train(train_id)
+        here = line.block_index(me.head_block_id, driver.direction)
+        assert here is not None  # the occupancy came from this direction's sections
+        sight = sections[min(here + CAB_SIGNAL_BLOCKS, len(sections) - 1)].entry_m
+        target = find_target(line, occupancy, train_id, horizon_m=driver.next_stop_m())
+        if target is None:
+            return None, sight
+        there = line.block_index(target.block_id, driver.direction)
+        if there is None or there - here > CAB_SIGNAL_BLOCKS:
+            return None, sight
+        return target.position_m, sight
+
+    def _check_tsrs(
+        self, train_id: int, driver: TrainDriver, head: float, speed: float, t: float
+    ) -> None:
+        if not self.tsrs or speed <= 0.0:
+            return
+        now = self.sim.now_s
+        tail = head - direction_sign(driver.direction) * driver.preset.train.length_m
+        for tsr in self.tsrs:
+            if (
+                not tsr.valid_from_s <= now < tsr.valid_until_s
+                or speed <= tsr.limit_mps + OVERSPEED_TOLERANCE_MPS
+            ):
+                continue
+            low, high = sorted((tsr.start_m, tsr.end_m))
+            where = [end for end, x in (("head", head), ("tail", tail)) if low <= x <= high]
+            if where and (train_id, tsr.session) not in self._violated:
+                self._violated.add((train_id, tsr.session))
+                self.tsr_violations.append(
+                    {
+                        "train": train_id,
+                        "session": tsr.session,
+                        "t_s": t,
+                        "at": where,
+                        "speed_kmh": round(speed * 3.6, 2),
+                        "limit_kmh": round(tsr.limit_mps * 3.6, 2),
+                    }
+                )
+
+    def _check_signals(
+        self,
+        train_id: int,
+        driver: TrainDriver,
+        before: float,
+        now: float,
+        occupancy: Any,
+        t: float,
+    ) -> None:
+        if before == now:
+            return
+        line = self.sim.line
+        up = driver.direction == UP
+        for section in line.block_sections_for(driver.direction):
+            entry = section.entry_m
+            crossed = before < entry <= now if up else now <= entry < before
+            if not crossed:
+                continue
+            others = [i for i in occupancy.occupants(section.id) if i != train_id]
+            if others:
+                self.passed_at_red.append(
+                    {
+                        "train": train_id,
+                        "t_s": t,
+                        "signal_km": entry / 1000.0,
+                        "block": section.id,
+                        "held_by": others,
+                    }
+                )

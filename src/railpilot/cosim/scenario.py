@@ -1,0 +1,287 @@
+"""A line-run scenario: the line, the trains' timetable, the radio, what happens when
+(issue 12 item 3; the format is in docs/line-run.md).
+
+TOML::
+
+    name = "A day on the heavy-haul line"
+    line = "heavy-haul"             # a shipped line or a line file
+    seed = 1                        # the radio's and the reconnects' randomness
+    duration_h = 9.0                # simulated time [h]
+
+    [channel]                       # cosim/channel.py: latency, loss, dead zones, outages
+    loss = 0.3
+    dead_zones = [{ start_km = 150.0, end_km = 156.0 }]
+
+    [[services]]                    # one train, or a series of them at a fixed interval
+    kind = "loaded"                 # loaded | empty (the heavy-haul presets)
+    from = 1                        # station ids; the direction follows
+    to = 20
+    first_departure_min = 10.0
+    every_min = 30.0                # optional, with count
+    count = 10
+    first_id = 101                  # link ids: first_id, first_id + 1, ...
+    dwell_min = 5.0                 # planned dwell at each intermediate station
+    supplement = 0.10               # running time over the fastest run
+
+    [[events]]                      # at_min, then a dispatcher's operation (ground/operations.py)
+    at_min = 60.0
+    op = "tsr_set"
+    start_km = 120.0
+    end_km = 124.0
+    limit_kmh = 45
+    valid_until_min = 180
+    reason = "track work"
+
+    [[events]]
+    at_min = 200.0
+    op = "train_failure"            # the train brakes to a stand and stands stand_min
+    train = 104
+    stand_min = 10.0
+
+Every field is checked when the file is read, a dispatcher's operation by the same schema
+the admin port, the web page and the command line use, so a scenario that loads runs to
+its end. An error names the field (``services[2].every_min``), its value and what is allowed.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import tomllib
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from railpilot.errors import ConfigError, ScenarioError, is_finite_number
+from railpilot.ground.operations import Operation, OperationError, parse_operation
+from railpilot.line.loader import load_line
+from railpilot.line.model import RailLine
+
+from .channel import ChannelModel
+from .driver import Service, Stop, planned_running_time_s
+
+#: the train kinds a service may name, and their presets (onboard/drive.py)
+KINDS = {"loaded": "heavy-haul-loaded", "empty": "heavy-haul-empty"}
+TOP_KEYS = (
+    "name",
+    "line",
+    "seed",
+    "duration_h",
+    "start_epoch_s",
+    "margin_kmh",
+    "channel",
+    "services",
+    "events",
+)
+SERVICE_KEYS = (
+    "kind",
+    "from",
+    "to",
+    "first_departure_min",
+    "every_min",
+    "count",
+    "first_id",
+    "dwell_min",
+    "supplement",
+    "number_prefix",
+)
+#: the event that is not a dispatcher's operation
+TRAIN_FAILURE = "train_failure"
+#: the link epoch the run starts at when the file gives none [s] (2027-01-15 08:00 UTC)
+DEFAULT_EPOCH_S = 1_800_000_000.0
+
+
+@dataclass(frozen=True)
+class TrainFailure:
+    train_id: int
+    stand_s: float
+
+
+@dataclass(frozen=True)
+class ScenarioEvent:
+    """Something that happens ``at_s`` seconds into the run."""
+
+    at_s: float
+    action: Operation | TrainFailure
+    label: str
+
+
+@dataclass(frozen=True)
+class LineScenario:
+    name: str
+    line: RailLine
+    services: tuple[Service, ...]
+    channel: ChannelModel
+    seed: int = 0
+    duration_s: float = 9 * 3600.0
+    epoch_s: float = DEFAULT_EPOCH_S
+    margin_kmh: float = 5.0
+    events: tuple[ScenarioEvent, ...] = field(default_factory=tuple)
+
+    def with_(self, **changes: Any) -> LineScenario:
+        """A copy with some fields changed (a sweep's seed, a test's channel)."""
+        values = {f: getattr(self, f) for f in self.__dataclass_fields__}
+        values.update(changes)
+        return LineScenario(**values)
+
+
+def _fail(field_name: str, value: Any, allowed: str) -> ScenarioError:
+    return ScenarioError(field_name, value, allowed)
+
+
+def _number(
+    table: Mapping[str, Any],
+    key: str,
+    where: str,
+    low: float,
+    high: float,
+    default: float | None = None,
+) -> float:
+    value = table.get(key, default)
+    if value is None:
+        raise _fail(f"{where}{key}", None, f"a number in [{low:g}, {high:g}] (required)")
+    if not is_finite_number(value) or not low <= value <= high:
+        raise _fail(f"{where}{key}", value, f"a number in [{low:g}, {high:g}]")
+    return float(value)
+
+
+def _integer(
+    table: Mapping[str, Any], key: str, where: str, low: int, high: int, default: int | None = None
+) -> int:
+    value = table.get(key, default)
+    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
+        raise _fail(f"{where}{key}", value, f"an integer in [{low}, {high}]")
+    return value
+
+
+def _check_keys(table: Any, where: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
+    if not isinstance(table, Mapping):
+        raise _fail(where or "scenario", table, "a table")
+    for key in table:
+        if key not in allowed:
+            raise _fail(f"{where}{key}", table[key], f"one of the keys {', '.join(allowed)}")
+    return table
+
+
+def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
+    if not isinstance(raw, list) or not raw:
+        raise _fail("services", raw, "a list of at least one [[services]] table")
+    services: list[Service] = []
+    station_ids = {s.id for s in line.stations}
+    for i, table in enumerate(raw):
+        where = f"services[{i}]."
+        _check_keys(table, where, SERVICE_KEYS)
+        kind = table.get("kind")
+        if kind not in KINDS:
+            raise _fail(f"{where}kind", kind, f"one of {', '.join(KINDS)}")
+        ends = []
+        for key in ("from", "to"):
+            value = table.get(key)
+            if value not in station_ids or isinstance(value, bool):
+                raise _fail(f"{where}{key}", value, f"a station id of line '{line.name}'")
+            ends.append(int(value))
+        if ends[0] == ends[1]:
+            raise _fail(f"{where}to", ends[1], "a station other than 'from'")
+        first = _number(table, "first_departure_min", where, 0.0, 7 * 24 * 60.0)
+        count = _integer(table, "count", where, 1, 1000, 1)
+        every = _number(table, "every_min", where, 1.0, 24 * 60.0, 60.0)
+        first_id = _integer(table, "first_id", where, 2, 65_000 - count)
+        dwell = _number(table, "dwell_min", where, 0.0, 600.0, 5.0)
+        supplement = _number(table, "supplement", where, 0.0, 1.0, 0.10)
+        prefix = table.get("number_prefix", "K" if kind == "loaded" else "E")
+        if not isinstance(prefix, str) or not 1 <= len(prefix) <= 2 or not prefix.isalnum():
+            raise _fail(f"{where}number_prefix", prefix, "1 or 2 letters or digits")
+        step = 1 if ends[1] > ends[0] else -1
+        stations = list(range(ends[0], ends[1] + step, step))
+        preset = KINDS[kind]
+        for n in range(count):
+            t = (first + n * every) * 60.0
+            stops = []
+            for j, station in enumerate(stations):
+                arrival = math.nan
+                if j > 0:
+                    arrival = t + planned_running_time_s(
+                        line, preset, stations[j - 1], station, margin, supplement
+                    )
+                    t = arrival + dwell * 60.0
+                departure = math.nan if j == len(stations) - 1 else t
+                stops.append(Stop(station, arrival, departure))
+            train_id = first_id + n
+            services.append(Service(train_id, f"{prefix}{train_id}", preset, tuple(stops)))
+    ids = [s.train_id for s in services]
+    twice = sorted({i for i in ids if ids.count(i) > 1})
+    if twice:
+        raise _fail("services", twice, "train ids used once (first_id and count overlap)")
+    return tuple(services)
+
+
+def _events(
+    raw: Any, line: RailLine, epoch_s: float, duration_s: float, train_ids: set[int]
+) -> tuple[ScenarioEvent, ...]:
+    if not isinstance(raw, list):
+        raise _fail("events", raw, "a list of [[events]] tables")
+    events = []
+    for i, table in enumerate(raw):
+        where = f"events[{i}]."
+        if not isinstance(table, Mapping):
+            raise _fail(f"events[{i}]", table, "a table")
+        at_s = _number(table, "at_min", where, 0.0, duration_s / 60.0) * 60.0
+        op = table.get("op")
+        fields = {k: v for k, v in table.items() if k not in ("at_min", "op")}
+        action: Operation | TrainFailure
+        if op == TRAIN_FAILURE:
+            _check_keys(fields, where, ("train", "stand_min"))
+            train = fields.get("train")
+            if train not in train_ids or isinstance(train, bool):
+                raise _fail(f"{where}train", train, "the id of a train of the scenario")
+            stand = _number(fields, "stand_min", where, 0.0, 24 * 60.0, 10.0)
+            action = TrainFailure(int(train), stand * 60.0)
+        else:
+            try:
+                action = parse_operation(op, fields, line=line, now_s=epoch_s + at_s)
+            except OperationError as error:
+                name, message = next(iter(error.errors.items()))
+                raise _fail(f"{where}{name}", table.get(name, op), message) from None
+        events.append(ScenarioEvent(at_s, action, str(op)))
+    return tuple(sorted(events, key=lambda e: e.at_s))
+
+
+def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
+    """A :class:`LineScenario` from a parsed file, every field checked (module docstring)."""
+    _check_keys(data, "", TOP_KEYS)
+    name = data.get("name", "line run")
+    if not isinstance(name, str):
+        raise _fail("name", name, "a string")
+    line_name = data.get("line", "heavy-haul")
+    if not isinstance(line_name, str):
+        raise _fail("line", line_name, "a shipped line name or a line file path")
+    line = load_line(line_name)
+    margin = _number(data, "margin_kmh", "", 0.0, 50.0, 5.0)
+    seed = _integer(data, "seed", "", 0, 2**63 - 1, 0)
+    duration_s = _number(data, "duration_h", "", 0.01, 7 * 24.0, 9.0) * 3600.0
+    epoch_s = _number(data, "start_epoch_s", "", 1.0, 4.0e9, DEFAULT_EPOCH_S)
+    channel_table = data.get("channel", {})
+    if not isinstance(channel_table, Mapping):
+        raise _fail("channel", channel_table, "a [channel] table")
+    channel = ChannelModel.from_mapping(channel_table)
+    services = _services(data.get("services"), line, margin)
+    events = _events(
+        data.get("events", []), line, epoch_s, duration_s, {s.train_id for s in services}
+    )
+    return LineScenario(name, line, services, channel, seed, duration_s, epoch_s, margin, events)
+
+
+def load_scenario(path: str | os.PathLike[str]) -> LineScenario:
+    """Read and check a line-run file; errors name the file."""
+    p = Path(path)
+    try:
+        data = tomllib.loads(p.read_text(encoding="utf-8"))
+    except FileNotFoundError:
+        raise ScenarioError("SCENARIO", str(path), "an existing line-run file") from None
+    except tomllib.TOMLDecodeError as error:
+        raise ScenarioError("SCENARIO", str(path), f"valid TOML ({error})") from None
+    try:
+        return scenario_from_mapping(data)
+    except ConfigError as error:
+        raise ScenarioError(f"{p.name}: {error.field}", error.value, error.allowed) from None

@@ -1,0 +1,71 @@
+"""``railpilot line simulate``: the JSON object, and bad input refused before anything runs."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+
+from railpilot.cli import main
+from railpilot.commands.line import _quantile
+
+TINY = """
+name = "tiny"
+line = "heavy-haul"
+duration_h = 0.5
+[channel]
+loss = 0.1
+[[services]]
+kind = "loaded"
+from = 1
+to = 2
+first_departure_min = 1.0
+first_id = 101
+"""
+
+
+def test_simulate_prints_the_kpis(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    assert main(["line", "simulate", str(path), "--json", "--out", str(tmp_path)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    for key in (
+        "trains",
+        "conformity_pct",
+        "energy_kwh",
+        "baseline_energy_kwh",
+        "red_signal_stops",
+        "tsr_violations",
+        "target_points_passed",
+        "link",
+    ):
+        assert key in out, key
+    assert out["trains"]["101"]["finished"]
+    assert out["link"]["ground"]["frames_received"] > 0
+    assert (tmp_path / "time_distance.png").stat().st_size > 10_000
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [(["--runs", "0"], "--runs"), (["--seed", "-3"], "--seed")],
+)
+def test_bad_arguments_are_refused(tmp_path, capsys, args, field):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    assert main(["line", "simulate", str(path), *args]) == 2
+    assert field in capsys.readouterr().err
+
+
+def test_a_bad_file_is_refused_naming_the_field(tmp_path, capsys):
+    path = tmp_path / "bad.toml"
+    path.write_text(TINY.replace('kind = "loaded"', 'kind = "tram"'))
+    assert main(["line", "simulate", str(path), "--json"]) == 2
+    captured = capsys.readouterr()
+    assert "services[0].kind" in captured.err and captured.out == ""
+
+
+def test_quantiles_are_numpys():
+    values = sorted(np.random.default_rng(1).normal(size=37).tolist())
+    for q in (0.05, 0.5, 0.95):
+        assert _quantile(values, q) == pytest.approx(np.quantile(values, q), abs=1e-4)

@@ -1,0 +1,201 @@
+"""The whole line in simulated time (cosim/line_run.py, cosim/driver.py, cosim/scenario.py).
+
+The trains are checked from the trackside, not from what they or the ground believe: no
+TSR overspeed at head or tail, no signal passed while its block is held; every train
+applies each TSR once; the same seed gives the same numbers; the co-simulation's driving
+of one station pair is ``railpilot drive``'s.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from numpy.testing import assert_allclose
+
+from railpilot.cosim.driver import TrainDriver
+from railpilot.cosim.line_run import run_line
+from railpilot.cosim.scenario import load_scenario, scenario_from_mapping
+from railpilot.errors import ConfigError
+from railpilot.onboard.drive import drive, heavy_haul_loaded
+
+BASE = {
+    "name": "test day",
+    "line": "heavy-haul",
+    "seed": 3,
+    "duration_h": 1.6,
+    "channel": {"loss": 0.3, "dead_zones": [{"start_km": 12.0, "end_km": 15.0}]},
+    "services": [
+        {
+            "kind": "loaded",
+            "from": 1,
+            "to": 2,
+            "first_departure_min": 2.0,
+            "every_min": 9.0,
+            "count": 3,
+            "first_id": 101,
+        },
+    ],
+    "events": [
+        {
+            "at_min": 4.0,
+            "op": "tsr_set",
+            "start_km": 14.0,
+            "end_km": 17.0,
+            "limit_kmh": 40,
+            "valid_until_min": 80,
+            "reason": "track work",
+        },
+        {"at_min": 16.0, "op": "train_failure", "train": 101, "stand_min": 6.0},
+    ],
+}
+
+
+@pytest.fixture(scope="module")
+def day():
+    return scenario_from_mapping(BASE)
+
+
+@pytest.fixture(scope="module")
+def advised(day):
+    return run_line(day)
+
+
+def test_nothing_unsafe_and_every_tsr_applied_once(advised):
+    kpis = advised.kpis()
+    assert kpis["tsr_violations"] == 0, advised.tsr_violations
+    assert kpis["target_points_passed"] == 0, advised.signals_passed_at_red
+    # every train was concerned by the TSR (all run through km 14-17) and applied it once
+    for train_id, sessions in advised.tsr_applied.items():
+        assert sessions == {1: 1}, (train_id, sessions)
+    # the radio really was bad: frames lost at random and in the dead zone
+    channel = kpis["link"]["channel"]
+    assert channel["lost_random"] > 0.25 * channel["packets"]
+    assert channel["lost_dead_zone"] > 0
+
+
+def test_the_failure_holds_the_followers(advised):
+    # 101 stands 6 min; the trains behind it are held by its occupancy (target points,
+    # cab signals) and arrive late; nobody passed a red signal doing so
+    trains = advised.kpis()["trains"]
+    assert all(t["finished"] for t in trains.values())
+    assert trains["101"]["arrival_delay_s"] > 300.0
+    assert trains["102"]["arrival_delay_s"] > 120.0
+    # the trackside saw every train keep at least a block behind the one ahead: the
+    # follower's head never reached the leader's tail
+    heads = {i: rows for i, rows in advised.trace.items()}
+    length = 1600.0
+    for leader, follower in ((101, 102), (102, 103)):
+        a, b = heads[leader], heads[follower]
+        common, ia, ib = np.intersect1d(a[:, 0], b[:, 0], return_indices=True)
+        assert common.size > 100
+        gap = (a[ia, 1] - length) - b[ib, 1]
+        assert np.all(gap > 0.0), float(gap.min())
+
+
+def test_the_same_seed_gives_the_same_numbers(day, advised):
+    again = run_line(day)
+    first, second = advised.kpis(), again.kpis()
+    for k in ("wall_s", "realtime_factor"):
+        first.pop(k), second.pop(k)
+    assert first == second
+    other = run_line(day, seed=4).kpis()
+    assert other["link"]["channel"] != first["link"]["channel"]
+
+
+def test_the_baseline_runs_the_same_day_without_advice(day, advised):
+    base = run_line(day, advised=False)
+    kpis = advised.kpis(base)
+    assert kpis["baseline_energy_kwh"] == base.kpis()["energy_kwh"]
+    assert kpis["baseline"]["tsr_violations"] == 0
+    assert kpis["baseline"]["target_points_passed"] == 0
+    # the baseline drives to the limits: its first train (ahead of the failure's effects
+    # on it) runs the first section faster than the advised plan
+    assert (
+        base.drivers[101].sections[0].running_time_s
+        < advised.drivers[101].sections[0].running_time_s
+    )
+
+
+def test_one_station_pair_is_driven_as_railpilot_drive_does():
+    """The co-simulation's driver and ``railpilot drive`` put the same planned curve on
+    the same simulation core: with nothing received on the way, the same run."""
+    scenario = scenario_from_mapping(
+        BASE
+        | {
+            "channel": {},
+            "events": [],
+            "duration_h": 0.6,
+            "services": [
+                {"kind": "loaded", "from": 1, "to": 2, "first_departure_min": 0.0, "first_id": 101}
+            ],
+        }
+    )
+    result = run_line(scenario)
+    section = result.drivers[101].sections[0]
+    alone = drive(
+        scenario.line, heavy_haul_loaded(), 1, 2, running_time_s=section.planned_running_time_s
+    ).summary()
+    assert_allclose(section.running_time_s, alone["running_time_s"], atol=0.15)
+    assert_allclose(section.energy_traction_kwh, alone["energy_traction_kwh"], rtol=1e-6)
+    assert_allclose(section.energy_regenerated_kwh, alone["energy_regenerated_kwh"], rtol=1e-6)
+
+
+def test_the_examples_load():
+    for name in ("examples/line_short_day.toml", "examples/heavy_haul_day.toml"):
+        scenario = load_scenario(name)
+        assert scenario.services and scenario.channel.loss == 0.3
+        for service in scenario.services:
+            stops = service.stops
+            assert math.isnan(stops[0].arrival_s) and math.isnan(stops[-1].departure_s)
+            times = [t for s in stops for t in (s.arrival_s, s.departure_s) if not math.isnan(t)]
+            assert times == sorted(times)
+
+
+@pytest.mark.parametrize(
+    ("change", "field"),
+    [
+        ({"seed": -1}, "seed"),
+        ({"duration_h": 0}, "duration_h"),
+        ({"colour": "red"}, "colour"),
+        ({"channel": {"loss": 1.5}}, "channel.loss"),
+        ({"services": []}, "services"),
+        ({"services": [BASE["services"][0] | {"kind": "passenger"}]}, "services[0].kind"),
+        ({"services": [BASE["services"][0] | {"from": 99}]}, "services[0].from"),
+        ({"services": [BASE["services"][0] | {"to": 1}]}, "services[0].to"),
+        ({"services": [BASE["services"][0] | {"count": 0}]}, "services[0].count"),
+        ({"services": [BASE["services"][0], BASE["services"][0]]}, "services"),
+        ({"events": [{"at_min": 999.0, "op": "tsr_cancel", "session": 1}]}, "events[0].at_min"),
+        ({"events": [BASE["events"][0] | {"limit_kmh": -5}]}, "events[0].limit_kmh"),
+        ({"events": [{"at_min": 1.0, "op": "train_failure", "train": 999}]}, "events[0].train"),
+        ({"events": [{"at_min": 1.0, "op": "launch"}]}, "events[0].op"),
+    ],
+)
+def test_bad_scenarios_are_refused_naming_the_field(change, field):
+    with pytest.raises(ConfigError) as caught:
+        scenario_from_mapping(BASE | change)
+    assert caught.value.field == field
+
+
+def test_a_missing_file_is_refused(tmp_path):
+    with pytest.raises(ConfigError, match="SCENARIO"):
+        load_scenario(tmp_path / "nope.toml")
+    bad = tmp_path / "bad.toml"
+    bad.write_text("name = [")
+    with pytest.raises(ConfigError, match="valid TOML"):
+        load_scenario(bad)
+
+
+def test_a_driver_is_a_mover(day):
+    driver = TrainDriver(day.line, day.services[0], day.epoch_s, 0.0)
+    head, speed = driver.state(0.0)
+    assert head == day.line.station(1).stop_m(driver.direction) and speed == 0.0
+
+
+def test_no_train_jumps(advised):
+    """Between two samples a second apart no head moves further than its speed allows."""
+    for train_id, rows in advised.trace.items():
+        dt = np.diff(rows[:, 0])
+        dx = np.abs(np.diff(rows[:, 1]))
+        assert np.all(dx <= 25.0 * dt), (train_id, float((dx / dt).max()))
