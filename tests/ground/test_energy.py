@@ -15,7 +15,7 @@ import pytest
 from railpilot.errors import ConfigError
 from railpilot.ground.energy import route_energy, section_energy
 from railpilot.line import UP, load_line
-from railpilot.onboard.drive import DEFAULT_MARGIN_KMH, _Route, heavy_haul_loaded
+from railpilot.onboard.drive import DEFAULT_MARGIN_KMH, StationRoute, heavy_haul_loaded
 from railpilot.onboard.mrsp import travelled_m
 from railpilot.onboard.planner import fastest, plan
 from railpilot.units import kmh_to_mps
@@ -33,7 +33,7 @@ def planner_section(from_id: int, to_id: int):  # type: ignore[no-untyped-def]
     """The planner's section of the station pair, built again here as ``drive`` does."""
     a, b = LINE.station(from_id), LINE.station(to_id)
     dep, arr = a.stop_m(UP), b.stop_m(UP)
-    route = _Route(
+    route = StationRoute(
         LINE,
         PRESET,
         UP,
