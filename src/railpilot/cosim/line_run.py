@@ -47,7 +47,6 @@ from railpilot.ground.occupancy import (
 )
 from railpilot.ground.operations import SetTsr
 from railpilot.ground.targets import find_target
-from railpilot.line.model import UP
 from railpilot.link import OnboardConfig
 from railpilot.net.loadtest import loadtest_keys
 
@@ -162,8 +161,8 @@ class LineResult:
             "realtime_factor": round(self.sim_s / self.wall_s, 1) if self.wall_s > 0 else None,
         }
         if baseline is not None:
-            out["baseline_energy_kwh"] = baseline.kpis()["energy_kwh"]
             base = baseline.kpis()
+            out["baseline_energy_kwh"] = base["energy_kwh"]
             out["baseline"] = {
                 k: base[k]
                 for k in (
@@ -305,7 +304,6 @@ class _Trackside:
         self.tsr_violations: list[dict[str, Any]] = []
         self._violated: set[tuple[int, int]] = set()
         self.passed_at_red: list[dict[str, Any]] = []
-        self._last: dict[int, float] = {}  # train -> head km post at the last look
         self._occupancy: Occupancy | None = None
         self._retired: set[int] = set()
 
@@ -314,7 +312,7 @@ class _Trackside:
         line = sim.line
         t = sim.now_s - sim.start_s
         reports = []
-        heads: dict[int, tuple[float, float]] = {}
+        on_line: list[int] = []
         for train_id, driver in self.drivers.items():
             if train_id in self._retired or t < driver.power_on_s:
                 continue
@@ -324,18 +322,18 @@ class _Trackside:
                 self._retired.add(train_id)
                 sim.retire(train_id)
                 continue
-            heads[train_id] = (head, speed)
+            on_line.append(train_id)
             self.trace[train_id].append((t, head, speed))
             length = driver.preset.train.length_m
             reports.append(TrainReport(train_id, head, driver.direction, length, sim.now_s))
             self._check_tsrs(train_id, driver, head, speed, t)
         occupancy = compute_occupancy(line, reports, sim.now_s)
         previous = self._occupancy
-        for train_id, (head, _) in heads.items():
+        placed = set(previous.train_ids) if previous is not None else set()
+        for train_id in on_line:
             driver = self.drivers[train_id]
-            if previous is not None and train_id in self._last:
-                self._check_signals(train_id, driver, self._last[train_id], head, previous, t)
-            self._last[train_id] = head
+            if previous is not None and train_id in placed:
+                self._check_signals(train_id, driver, previous, occupancy, t)
             driver.cab_signal(*self._cab_view(occupancy, train_id, driver), t)
         self._occupancy = occupancy
         if self.on_watch is not None:
@@ -390,30 +388,22 @@ class _Trackside:
                 )
 
     def _check_signals(
-        self,
-        train_id: int,
-        driver: TrainDriver,
-        before: float,
-        now: float,
-        occupancy: Any,
-        t: float,
+        self, train_id: int, driver: TrainDriver, before: Occupancy, now: Occupancy, t: float
     ) -> None:
-        if before == now:
-            return
+        """Every signal the head passed since the last look (the entries of the blocks it
+        went into), against the blocks' occupancy at the last look."""
         line = self.sim.line
-        up = driver.direction == UP
-        for section in line.block_sections_for(driver.direction):
-            entry = section.entry_m
-            crossed = before < entry <= now if up else now <= entry < before
-            if not crossed:
-                continue
-            others = [i for i in occupancy.occupants(section.id) if i != train_id]
+        first = line.block_index(before.train(train_id).head_block_id, driver.direction)
+        last = line.block_index(now.train(train_id).head_block_id, driver.direction)
+        assert first is not None and last is not None  # both from this direction's blocks
+        for section in line.block_sections_for(driver.direction)[first + 1 : last + 1]:
+            others = [i for i in before.occupants(section.id) if i != train_id]
             if others:
                 self.passed_at_red.append(
                     {
                         "train": train_id,
                         "t_s": t,
-                        "signal_km": entry / 1000.0,
+                        "signal_km": section.entry_m / 1000.0,
                         "block": section.id,
                         "held_by": others,
                     }

@@ -126,10 +126,6 @@ class LineScenario:
         return LineScenario(**values)
 
 
-def _fail(field_name: str, value: Any, allowed: str) -> ScenarioError:
-    return ScenarioError(field_name, value, allowed)
-
-
 def _number(
     table: Mapping[str, Any],
     key: str,
@@ -140,9 +136,9 @@ def _number(
 ) -> float:
     value = table.get(key, default)
     if value is None:
-        raise _fail(f"{where}{key}", None, f"a number in [{low:g}, {high:g}] (required)")
+        raise ScenarioError(f"{where}{key}", None, f"a number in [{low:g}, {high:g}] (required)")
     if not is_finite_number(value) or not low <= value <= high:
-        raise _fail(f"{where}{key}", value, f"a number in [{low:g}, {high:g}]")
+        raise ScenarioError(f"{where}{key}", value, f"a number in [{low:g}, {high:g}]")
     return float(value)
 
 
@@ -151,22 +147,24 @@ def _integer(
 ) -> int:
     value = table.get(key, default)
     if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise _fail(f"{where}{key}", value, f"an integer in [{low}, {high}]")
+        raise ScenarioError(f"{where}{key}", value, f"an integer in [{low}, {high}]")
     return value
 
 
 def _check_keys(table: Any, where: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
     if not isinstance(table, Mapping):
-        raise _fail(where or "scenario", table, "a table")
+        raise ScenarioError(where or "scenario", table, "a table")
     for key in table:
         if key not in allowed:
-            raise _fail(f"{where}{key}", table[key], f"one of the keys {', '.join(allowed)}")
+            raise ScenarioError(
+                f"{where}{key}", table[key], f"one of the keys {', '.join(allowed)}"
+            )
     return table
 
 
 def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
     if not isinstance(raw, list) or not raw:
-        raise _fail("services", raw, "a list of at least one [[services]] table")
+        raise ScenarioError("services", raw, "a list of at least one [[services]] table")
     services: list[Service] = []
     station_ids = {s.id for s in line.stations}
     for i, table in enumerate(raw):
@@ -174,15 +172,15 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
         _check_keys(table, where, SERVICE_KEYS)
         kind = table.get("kind")
         if kind not in KINDS:
-            raise _fail(f"{where}kind", kind, f"one of {', '.join(KINDS)}")
+            raise ScenarioError(f"{where}kind", kind, f"one of {', '.join(KINDS)}")
         ends = []
         for key in ("from", "to"):
             value = table.get(key)
             if value not in station_ids or isinstance(value, bool):
-                raise _fail(f"{where}{key}", value, f"a station id of line '{line.name}'")
+                raise ScenarioError(f"{where}{key}", value, f"a station id of line '{line.name}'")
             ends.append(int(value))
         if ends[0] == ends[1]:
-            raise _fail(f"{where}to", ends[1], "a station other than 'from'")
+            raise ScenarioError(f"{where}to", ends[1], "a station other than 'from'")
         first = _number(table, "first_departure_min", where, 0.0, 7 * 24 * 60.0)
         count = _integer(table, "count", where, 1, 1000, 1)
         every = _number(table, "every_min", where, 1.0, 24 * 60.0, 60.0)
@@ -191,7 +189,7 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
         supplement = _number(table, "supplement", where, 0.0, 1.0, 0.10)
         prefix = table.get("number_prefix", "K" if kind == "loaded" else "E")
         if not isinstance(prefix, str) or not 1 <= len(prefix) <= 2 or not prefix.isalnum():
-            raise _fail(f"{where}number_prefix", prefix, "1 or 2 letters or digits")
+            raise ScenarioError(f"{where}number_prefix", prefix, "1 or 2 letters or digits")
         step = 1 if ends[1] > ends[0] else -1
         stations = list(range(ends[0], ends[1] + step, step))
         preset = KINDS[kind]
@@ -212,7 +210,7 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
     ids = [s.train_id for s in services]
     twice = sorted({i for i in ids if ids.count(i) > 1})
     if twice:
-        raise _fail("services", twice, "train ids used once (first_id and count overlap)")
+        raise ScenarioError("services", twice, "train ids used once (first_id and count overlap)")
     return tuple(services)
 
 
@@ -220,12 +218,12 @@ def _events(
     raw: Any, line: RailLine, epoch_s: float, duration_s: float, train_ids: set[int]
 ) -> tuple[ScenarioEvent, ...]:
     if not isinstance(raw, list):
-        raise _fail("events", raw, "a list of [[events]] tables")
+        raise ScenarioError("events", raw, "a list of [[events]] tables")
     events = []
     for i, table in enumerate(raw):
         where = f"events[{i}]."
         if not isinstance(table, Mapping):
-            raise _fail(f"events[{i}]", table, "a table")
+            raise ScenarioError(f"events[{i}]", table, "a table")
         at_s = _number(table, "at_min", where, 0.0, duration_s / 60.0) * 60.0
         op = table.get("op")
         fields = {k: v for k, v in table.items() if k not in ("at_min", "op")}
@@ -234,7 +232,7 @@ def _events(
             _check_keys(fields, where, ("train", "stand_min"))
             train = fields.get("train")
             if train not in train_ids or isinstance(train, bool):
-                raise _fail(f"{where}train", train, "the id of a train of the scenario")
+                raise ScenarioError(f"{where}train", train, "the id of a train of the scenario")
             stand = _number(fields, "stand_min", where, 0.0, 24 * 60.0, 10.0)
             action = TrainFailure(int(train), stand * 60.0)
         else:
@@ -242,7 +240,7 @@ def _events(
                 action = parse_operation(op, fields, line=line, now_s=epoch_s + at_s)
             except OperationError as error:
                 name, message = next(iter(error.errors.items()))
-                raise _fail(f"{where}{name}", table.get(name, op), message) from None
+                raise ScenarioError(f"{where}{name}", table.get(name, op), message) from None
         events.append(ScenarioEvent(at_s, action, str(op)))
     return tuple(sorted(events, key=lambda e: e.at_s))
 
@@ -252,10 +250,10 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
     _check_keys(data, "", TOP_KEYS)
     name = data.get("name", "line run")
     if not isinstance(name, str):
-        raise _fail("name", name, "a string")
+        raise ScenarioError("name", name, "a string")
     line_name = data.get("line", "heavy-haul")
     if not isinstance(line_name, str):
-        raise _fail("line", line_name, "a shipped line name or a line file path")
+        raise ScenarioError("line", line_name, "a shipped line name or a line file path")
     line = load_line(line_name)
     margin = _number(data, "margin_kmh", "", 0.0, 50.0, 5.0)
     seed = _integer(data, "seed", "", 0, 2**63 - 1, 0)
@@ -263,7 +261,7 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
     epoch_s = _number(data, "start_epoch_s", "", 1.0, 4.0e9, DEFAULT_EPOCH_S)
     channel_table = data.get("channel", {})
     if not isinstance(channel_table, Mapping):
-        raise _fail("channel", channel_table, "a [channel] table")
+        raise ScenarioError("channel", channel_table, "a [channel] table")
     channel = ChannelModel.from_mapping(channel_table)
     services = _services(data.get("services"), line, margin)
     events = _events(
