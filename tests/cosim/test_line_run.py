@@ -199,3 +199,12 @@ def test_no_train_jumps(advised):
         dt = np.diff(rows[:, 0])
         dx = np.abs(np.diff(rows[:, 1]))
         assert np.all(dx <= 25.0 * dt), (train_id, float((dx / dt).max()))
+
+
+def test_a_tsr_valid_later_is_obeyed_when_it_starts():
+    """A TSR set at 4 min valid from 14 min: the trains reach km 14-17 after it starts and
+    must be under its limit there, though nothing happens on the link at its start."""
+    later = BASE["events"][0] | {"valid_from_min": 10, "valid_until_min": 80}
+    result = run_line(scenario_from_mapping(BASE | {"events": [later]}))
+    assert result.kpis()["tsr_violations"] == 0, result.tsr_violations
+    assert all(sessions == {1: 1} for sessions in result.tsr_applied.values())

@@ -409,7 +409,9 @@ class TrainDriver:
 
     def _mrsp(self, route: StationRoute, t: float) -> Mrsp:
         now = self.epoch_s + t
-        tsrs = [tsr for tsr in self.tsrs.values() if tsr.valid_from_s <= now < tsr.valid_until_s]
+        # obeyed from arrival until expiry, before its validity starts too: the safe side,
+        # and nothing would re-plan the train at the start (its end: TsrExpired)
+        tsrs = [tsr for tsr in self.tsrs.values() if now < tsr.valid_until_s]
         return most_restrictive_profile(
             route.static, tsrs, self._stops_known(), direction=self.direction
         )
