@@ -9,6 +9,7 @@ of one station pair is ``railpilot drive``'s.
 from __future__ import annotations
 
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -208,3 +209,17 @@ def test_a_tsr_valid_later_is_obeyed_when_it_starts():
     result = run_line(scenario_from_mapping(BASE | {"events": [later]}))
     assert result.kpis()["tsr_violations"] == 0, result.tsr_violations
     assert all(sessions == {1: 1} for sessions in result.tsr_applied.values())
+
+
+def test_a_train_brought_to_rest_after_its_red_cleared_goes_on():
+    # Found in the short day's baseline: K103 brakes for a red cab signal at 4748 s; the
+    # red clears at 4805 s while it is still braking, and the air brake, releasing,
+    # brings it to rest 84 m on. Nothing held it there, yet it stood 39 min, until the
+    # next change of what it knew (the TSR's expiry). It must go on at once.
+    day = load_scenario(Path(__file__).parents[2] / "examples" / "line_short_day.toml")
+    result = run_line(day, advised=False, until_s=5400.0)
+    trace = result.trace[103]
+    after = trace[(trace[:, 0] > 4805.0)]
+    at_rest = after[after[:, 2] == 0.0]
+    assert len(at_rest) < 120  # [s]: the brake releases, and it goes on
+    assert after[-1, 1] > after[0, 1] + 2000.0

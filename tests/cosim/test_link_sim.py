@@ -5,10 +5,11 @@ from __future__ import annotations
 
 import pytest
 
-from railpilot.cosim.channel import ChannelModel, DeadZone
+from railpilot.cosim.channel import ChannelModel, DeadZone, Outage
 from railpilot.cosim.link_sim import LinkSim, SimTrain
 from railpilot.errors import ConfigError
 from railpilot.ground.operations import parse_operation
+from railpilot.ground.store import Store
 from railpilot.line.loader import load_line
 from railpilot.link import DeliveryState, OnboardConfig, TargetReason, TravelDirection, TsrState
 from railpilot.net.client import Trajectory
@@ -125,3 +126,67 @@ def test_bad_train_lists_are_refused_naming_the_field() -> None:
     with pytest.raises(ConfigError) as info:
         LinkSim(LINE, twice, ChannelModel(), keys)
     assert info.value.field == "trains" and info.value.value == [30001]
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_ground_killed_with_deliveries_pending_resumes_them_from_its_store(seed: int) -> None:
+    channel = ChannelModel(loss=0.5)
+    with Store(":memory:") as store:
+        sim = LinkSim(LINE, six_trains(), channel, loadtest_keys(seed, IDS), seed=seed, store=store)
+        sim.run_until(120.0)
+        session, concerned = set_tsr(sim, 180.0, 182.0)
+        # killed at once: every TsrSet just sent is in flight (or lost), none acknowledged
+        pending = {t: sim.records[t].tsrs[session].state for t in concerned}
+        assert set(pending.values()) == {TsrState.PENDING_SET}
+        sim.restart_ground(30.0)
+        assert sim.records == {} and not sim.ground_up
+        sim.run_until(900.0)
+        (restart,) = sim.restarts
+        assert restart["restored"]["pending_set"] == len(concerned)
+        for train_id in IDS:
+            applied = sim.stats[train_id].tsr_applied[session]
+            assert applied == (1 if train_id in concerned else 0), train_id
+        for train_id in concerned:
+            state = sim.records[train_id].tsrs[session].state
+            assert state in (TsrState.ACTIVE, TsrState.RECONFIRMING)
+            assert session in sim.onboard[train_id].active_tsrs
+        # the restarted dispatch core still knows the TSR, and cancels it everywhere
+        op = parse_operation("tsr_cancel", {"session": session}, line=LINE, now_s=sim.now_s)
+        outcome = sim.dispatch.execute(op, "d1", sim.now_s)
+        assert sorted(outcome.result["trains"]) == sorted(concerned)
+        sim.execute(outcome.commands)
+        sim.run_until(1200.0)
+        for train_id in concerned:
+            assert sim.records[train_id].tsrs[session].state is TsrState.CANCELLED
+            assert session not in sim.onboard[train_id].active_tsrs
+
+
+def test_a_restart_needs_a_store() -> None:
+    sim = LinkSim(
+        LINE, [SimTrain(config(30001), Trajectory())], ChannelModel(), loadtest_keys(0, IDS)
+    )
+    with pytest.raises(ConfigError) as info:
+        sim.restart_ground(10.0)
+    assert info.value.field == "store"
+
+
+def test_a_train_that_leaves_with_its_link_down_deregisters_when_it_is_back() -> None:
+    # Stopped at its destination during a radio outage: it cannot say it has left. Without
+    # a deregistration the ground keeps it where it last reported, for ever (a block held
+    # against the trains behind), so it says so as soon as it has registered again.
+    start = 1_800_000_000.0  # the outage is in the link's epoch time
+    channel = ChannelModel(outages=(Outage(start + 20.0, start + 200.0),))
+    mover = Trajectory(start_m=100_000.0, speed_mps=0.0)
+    train = SimTrain(config(30001), mover)
+    sim = LinkSim(LINE, [train], channel, loadtest_keys(0, IDS), start_s=start)
+    sim.run_until(150.0)
+    assert 30001 not in sim.live  # the link has failed in the outage
+    sim.retire(30001)
+    assert 30001 not in sim.retired
+    sim.run_until(600.0)
+    assert 30001 in sim.retired
+    assert not sim.dispatch.registry.state(30001, sim.now_s).registered
+    assert sim.dispatch.registry.reports() == []  # nothing left to occupy a block
+    attempts = sim.stats[30001].connect_attempts
+    sim.run_until(1200.0)
+    assert sim.stats[30001].connect_attempts == attempts  # gone for good

@@ -18,6 +18,7 @@ from railpilot.ground.dispatch import (
     SendDispatchCommand,
     SendTargetPoint,
 )
+from railpilot.ground.journal import GroundJournal
 from railpilot.ground.operations import OperationError, parse_operation
 from railpilot.ground.store import Store
 from railpilot.ground.tsr_manager import LineTsrState
@@ -215,3 +216,30 @@ def test_status_shows_each_tsr_with_its_range_limit_expiry_and_trains() -> None:
     }
     (restriction,) = status["restrictions"]
     assert (restriction["track"], restriction["block"]) == ("down", None)
+
+
+def test_a_tsr_no_train_has_yet_and_its_cancel_survive_a_restart() -> None:
+    # The journal records the dispatcher's TSR when it is set, not only when it leaves for
+    # a train: one set before any train is concerned would otherwise vanish on a restart.
+    core = GroundDispatch(LINE)
+    with Store(":memory:") as store:
+        journal = GroundJournal(store)
+        for fields in (TSR, {**TSR, "start_km": 8, "end_km": 9}):
+            op = parse_operation("tsr_set", fields, line=LINE, now_s=T0)
+            outcome = core.execute(op, "d1", T0)
+            assert outcome.commands == ()  # no train to send it to
+            journal.record_operation(op, outcome.result, "d1", T0)
+        cancel = parse_operation("tsr_cancel", {"session": 2}, line=LINE, now_s=T0 + 1)
+        journal.record_operation(cancel, core.execute(cancel, "d1", T0 + 1).result, "d1", T0 + 1)
+        snapshot = store.load()
+    again = GroundDispatch(LINE)
+    again.restore(snapshot, T0 + 5, {})
+    assert again.tsrs.state(1) is LineTsrState.ACTIVE
+    assert again.tsrs.state(2) is LineTsrState.CANCELLED
+    (tsr,) = [t for t in again.tsrs.tsrs() if t.session == 1]
+    assert (tsr.start_m, tsr.end_m, tsr.reason, tsr.set_by) == (6000.0, 7000.0, "works", "d1")
+    # a train that registers after the restart, short of the TSR, gets it
+    register(again, 1, T0 + 6)
+    (deliver,) = report(again, 1, 3.0, T0 + 6)
+    assert isinstance(deliver, DeliverTsr) and deliver.train_ids == (1,)
+    assert deliver.tsr.session == 1

@@ -69,6 +69,9 @@ DEFAULT_DT_S = 0.1
 #: target ids the driver gives the stops it makes itself (the link's are below 2^32)
 CAB_SIGNAL_ID = 0
 FAILURE_STOP_ID = 2**32
+#: a train at rest this close short of a stop it knows of is held there [m] (farther:
+#: nothing holds it, it goes on)
+HELD_WITHIN_M = 10.0
 #: a train stopped this close to its station's stop point has arrived [m]
 ARRIVED_WITHIN_M = 50.0
 #: the simulation core keeps a row a second (its cheap calling convention; the rows
@@ -282,7 +285,13 @@ class TrainDriver:
             running.stopped = True
             running.record.stops_at_red += int(self._failure_m is None)
             self.red_signal_stops += int(self._failure_m is None)
-            return
+            position = stepper.position_m
+            if running.route.next_stop_s(running.mrsp, position) - position < HELD_WITHIN_M:
+                return  # held at a red signal or a failure, until it clears (replan)
+            # Nothing it knows holds it here: the red cleared while it was braking for it
+            # and the air brake, still releasing, brought it to rest. It goes on now (it
+            # waited for a change that had already come: 39 min in one baseline run).
+            self._follow(running, running.t0 + stepper.stop_time_s)
 
     def _pair(self, k: int) -> tuple[int, int]:
         stops = self.service.stops
@@ -434,11 +443,17 @@ class TrainDriver:
                 self._held, self._released_s = False, t
             self.advance(t)
             return
-        stepper = running.stepper
         new = self._mrsp(running.route, t)
         if new == running.mrsp:
             return
         running.mrsp = new
+        self._follow(running, t)
+
+    def _follow(self, running: _Running, t: float) -> None:
+        """Plan from where the train is at ``t`` to what its MRSP lets it reach, and track
+        that (from rest: start again)."""
+        stepper = running.stepper
+        new = running.mrsp
         s_now, v_now = stepper.position_m, stepper.speed_mps
         route = running.route
         if route.next_stop_s(new, s_now) - s_now < 1.0 and running.stopped:

@@ -45,14 +45,15 @@ from railpilot.ground.occupancy import (
     compute_occupancy,
     direction_sign,
 )
-from railpilot.ground.operations import SetTsr
+from railpilot.ground.operations import CancelTsr, SetTsr
+from railpilot.ground.store import AuditEntry, Snapshot, Store
 from railpilot.ground.targets import find_target
 from railpilot.link import OnboardConfig
 from railpilot.net.loadtest import loadtest_keys
 
 from .driver import TrainDriver
 from .link_sim import LinkSim, SimTrain
-from .scenario import LineScenario, ScenarioEvent, TrainFailure
+from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
@@ -63,6 +64,8 @@ CAB_SIGNAL_BLOCKS = 2
 POWER_ON_LEAD_S = 120.0
 #: over a limit by more than this is a violation [m/s] (the speed sensor's resolution)
 OVERSPEED_TOLERANCE_MPS = 0.01
+#: a dispatcher's operation that finds the ground down is tried again this much later [s]
+RETRY_WHILE_DOWN_S = 10.0
 
 
 @dataclass
@@ -93,10 +96,20 @@ class LineResult:
     tsr_applied: dict[int, dict[int, int]]  # train -> session -> times applied
     wall_s: float
     events: list[dict[str, Any]] = field(default_factory=list)
+    #: the ground's restarts (LinkSim.restarts)
+    restarts: list[dict[str, Any]] = field(default_factory=list)
+    #: the ground's store at the end of the run: its audit log and what it holds
+    audit_log: list[AuditEntry] = field(default_factory=list)
+    ground_store: Snapshot | None = None
+    #: the TSR sessions each train's onboard holds at the end of the run
+    onboard_tsrs: dict[int, list[int]] = field(default_factory=dict)
+    #: where the run stopped [s since its start] (None: the scenario's end)
+    end_s: float | None = None
 
     @property
     def sim_s(self) -> float:
-        return self.scenario.duration_s
+        """Simulated time run [s]: the scenario's duration, or ``until_s`` if shorter."""
+        return self.end_s if self.end_s is not None else self.scenario.duration_s
 
     def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
         """The KPI object of ``railpilot line simulate --json`` (module docstring)."""
@@ -147,7 +160,7 @@ class LineResult:
             "conformity_pct": {
                 "mean_end_to_end": _mean(end_to_end),
                 "mean_abs_section": _mean([abs(c) for c in all_sections]),
-                "max_section": max(all_sections, default=None),
+                "max_section": round(max(all_sections), 3) if all_sections else None,
             },
             "energy_kwh": round(total_energy, 1),
             "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
@@ -157,6 +170,7 @@ class LineResult:
                 1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
             ),
             "link": self.link,
+            "ground_restarts": self.restarts,
             "wall_s": round(self.wall_s, 3),
             "realtime_factor": round(self.sim_s / self.wall_s, 1) if self.wall_s > 0 else None,
         }
@@ -216,7 +230,10 @@ def run_line(
         trains.append(SimTrain(config, driver, power_on, driver.on_event))
     ids = [s.train_id for s in scenario.services]
     keys = loadtest_keys(seed, range(min(ids), max(ids) + 1))
-    sim = LinkSim(line, trains, scenario.channel, keys, seed=seed, start_s=epoch)
+    # the ground keeps its TSRs, deliveries and audit log in a store, as the live ground
+    # does (in memory: it outlives the simulated ground process, not this one)
+    store = Store(":memory:", synchronous="NORMAL")
+    sim = LinkSim(line, trains, scenario.channel, keys, seed=seed, start_s=epoch, store=store)
     watch = _Trackside(sim, drivers, on_watch)
     events: list[dict[str, Any]] = []
     for event in scenario.events:
@@ -226,6 +243,8 @@ def run_line(
     end = scenario.duration_s if until_s is None else min(until_s, scenario.duration_s)
     sim.run_until(end)
     wall = time.perf_counter() - started
+    audit_log, snapshot = store.audit_log(), store.load()
+    store.close()
     return LineResult(
         scenario,
         seed,
@@ -238,6 +257,11 @@ def run_line(
         {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
         wall,
         events,
+        sim.restarts,
+        audit_log,
+        snapshot,
+        {i: sorted(endpoint.active_tsrs) for i, endpoint in sim.onboard.items()},
+        end,
     )
 
 
@@ -257,11 +281,25 @@ def _event_action(
             driver.fail(t)
             sim.call_at(t + action.stand_s, lambda: driver.recover(sim.now_s - sim.start_s))
             entry["train"] = action.train_id
+        elif isinstance(action, GroundRestart):
+            sim.restart_ground(action.down_s)
+            entry["down_s"] = action.down_s
+        elif not sim.ground_up:
+            # the dispatcher's operation waits for the ground to be back
+            sim.call_at(t + RETRY_WHILE_DOWN_S, act)
+            return
         else:
             outcome = sim.dispatch.execute(action, "scenario", sim.now_s)
+            if sim.journal is not None:
+                sim.journal.record_operation(action, outcome.result, "scenario", sim.now_s)
             sim.execute(outcome.commands)
             entry["result"] = outcome.result
-            if isinstance(action, SetTsr):
+            if isinstance(action, CancelTsr):
+                # lifted from the track when the dispatcher cancels it
+                for tsr in watch.tsrs:
+                    if tsr.session == action.session:
+                        tsr.valid_until_s = min(tsr.valid_until_s, sim.now_s)
+            elif isinstance(action, SetTsr):
                 session = int(outcome.result["session"])
                 entry["tsr"] = {
                     "session": session,

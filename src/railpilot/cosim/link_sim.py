@@ -20,6 +20,14 @@ close their sockets. Packets still in flight on it are dropped. The onboard trie
 after its own back-off (``reconnect_delay_s``, with jitter from a seeded generator).
 A train that registers on a new connection takes its deliveries over from the old one.
 
+The ground's store. With a :class:`~railpilot.ground.store.GroundStore`, the ground keeps
+its TSRs, deliveries, acknowledgements and audit log there as the live ground does (the
+same :class:`~railpilot.ground.journal.GroundJournal`): each step's changes are committed
+before its frames leave, each dispatcher's request before it is carried out.
+:meth:`LinkSim.restart_ground` then kills the ground as ``kill -9`` would (every
+connection drops, nothing more is written, everything in memory is gone) and starts it
+again later from the store alone.
+
 Trains. A train is anything that says where it is (:class:`Mover`): here a constant-speed
 :class:`~railpilot.net.client.Trajectory`, as the load test uses. It hears every
 onboard event (``on_event``), so a driving model can obey what the link brings.
@@ -32,7 +40,7 @@ import itertools
 import random
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Protocol
 
 from railpilot.errors import ConfigError, is_finite_number
@@ -44,6 +52,8 @@ from railpilot.ground.dispatch import (
     SendTargetPoint,
     command_trains,
 )
+from railpilot.ground.journal import GroundJournal, command_request, declared_restrictions
+from railpilot.ground.store import GroundStore
 from railpilot.line.model import RailLine
 from railpilot.link import (
     Deregistered,
@@ -64,6 +74,7 @@ from railpilot.link import (
     TravelDirection,
     TsrApplied,
 )
+from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.net.client import Trajectory
 from railpilot.net.server import counters_dict
 
@@ -144,6 +155,9 @@ class LinkSim:
         and TSR validity are epoch times, as on the live link.
     ground_id
         The ground's link id.
+    store
+        The ground's store (module docstring); None: the ground keeps everything in
+        memory, and cannot be restarted.
     """
 
     def __init__(
@@ -157,6 +171,7 @@ class LinkSim:
         start_s: float = 1_800_000_000.0,
         ground_id: int = 1,
         tick_s: float = TICK_S,
+        store: GroundStore | None = None,
     ) -> None:
         if not trains:
             raise ConfigError("trains", [], "at least one train")
@@ -174,7 +189,13 @@ class LinkSim:
         self.tick_s = tick_s
         self.ground_config = GroundConfig(ground_id=ground_id, timers=timers)
         self.records: dict[int, TrainRecord] = {}
-        self.dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        self.dispatch = self._new_dispatch()
+        self.journal = GroundJournal(store) if store is not None else None
+        #: whether the ground is running (:meth:`restart_ground`)
+        self.ground_up = True
+        #: each restart: when the ground went down and came up [s since the start of the
+        #: run], and what it restored (GroundJournal.restore's summary)
+        self.restarts: list[dict[str, Any]] = []
         self.trains = {t.config.train_id: t for t in trains}
         self.onboard = {i: OnboardEndpoint(t.config, keys) for i, t in self.trains.items()}
         self.channels = {i: RadioChannel(channel, seed, i) for i in self.trains}
@@ -188,7 +209,9 @@ class LinkSim:
         self._queue: list[tuple[float, int, str, Any]] = []
         self._order = itertools.count()  # ties keep the order they were queued in
         self._deadline: dict[tuple[str, int], float] = {}
-        #: trains that have left the line (:meth:`retire`): they never connect again
+        #: trains leaving the line (:meth:`retire`), until their deregistration is through
+        self.retiring: set[int] = set()
+        #: trains that have left the line: they never connect again
         self.retired: set[int] = set()
         for train_id, train in self.trains.items():
             self._push(self.start_s + train.start_s, "connect", train_id)
@@ -212,16 +235,47 @@ class LinkSim:
         self._push(self.start_s + t_s, "call", action)
 
     def retire(self, train_id: int) -> None:
-        """The train leaves the line now: it deregisters (leaving the main line) if it is
-        registered, and never connects again."""
-        self.retired.add(train_id)
-        onboard = self.onboard[train_id]
+        """The train leaves the line: it deregisters (leaving the main line) now if it is
+        registered, else as soon as it has registered again, and once the ground has
+        confirmed that, it never connects again.
+
+        A train that just left without deregistering would stay on the ground as a train
+        that stopped reporting, where it was last seen: a conservative ground keeps its
+        block occupied and holds the train behind it at a red signal for ever.
+        """
+        self.retiring.add(train_id)
+        self._leave(train_id)
+
+    def _leave(self, train_id: int) -> None:
         serial = self._serial_of(train_id)
-        if onboard.state is OnboardState.REGISTERED and serial is not None:
-            onboard.deregister(DeregisterReason.LEAVING_MAIN_LINE, self.now_s)
+        if self.onboard[train_id].state is OnboardState.REGISTERED and serial is not None:
+            self.onboard[train_id].deregister(DeregisterReason.LEAVING_MAIN_LINE, self.now_s)
             self._after_onboard(train_id, serial)
-        elif serial is not None:
-            self._close(self._connections[serial], failure=False)
+
+    def restart_ground(self, down_s: float) -> None:
+        """Kill the ground now, as ``kill -9`` would, and start it again ``down_s`` seconds
+        later from its store alone (module docstring).
+
+        The killed process writes nothing more; the operating system closes its sockets,
+        so every train sees its connection drop at once and tries again after its
+        back-off; frames in flight are lost. Until it is up again no connection is
+        accepted and the dispatch core does not tick.
+        """
+        if self.journal is None:
+            raise ConfigError("store", None, "a ground store (without one, a restart loses all)")
+        if not is_finite_number(down_s) or down_s < 0:
+            raise ConfigError("down_s", down_s, "a time >= 0 [s]")
+        if not self.ground_up:
+            raise ConfigError("restart_ground", self.now_s - self.start_s, "a running ground")
+        self.ground_up = False
+        for conn in list(self._connections.values()):
+            self._close(conn)
+        self.restarts.append({"down_at_s": self.now_s - self.start_s})
+        # everything the process held in memory
+        self.records = {}
+        self.live.clear()
+        self.dispatch = self._new_dispatch()
+        self._push(self.now_s + down_s, "ground_start", None)
 
     def execute(self, commands: Iterable[Command]) -> None:
         """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
@@ -285,6 +339,19 @@ class LinkSim:
     def _on_call(self, action: Callable[[], None]) -> None:
         action()
 
+    def _on_ground_start(self, _: None) -> None:
+        """The restarted ground rebuilds its records and its dispatch core from the store,
+        as ``GroundServer.start`` and ``DispatchHost.start`` do."""
+        assert self.journal is not None  # restart_ground needs it
+        store = self.journal.store
+        not_before_s = self.now_s - REPLAY_WINDOW_S  # frames older than this are replays
+        self.ground_config = replace(self.ground_config, not_before_s=not_before_s)
+        snapshot = store.load()
+        self.records, summary = self.journal.restore(snapshot, not_before_s, self.now_s)
+        self.dispatch.restore(snapshot, self.now_s, declared_restrictions(store.audit_log()))
+        self.ground_up = True
+        self.restarts[-1] |= {"up_at_s": self.now_s - self.start_s, "restored": summary}
+
     def _on_connect(self, train_id: int) -> None:
         if train_id in self.retired:
             return
@@ -292,7 +359,7 @@ class LinkSim:
         stats.connect_attempts += 1
         onboard = self.onboard[train_id]
         position, _ = self.position(train_id)
-        if not self.channels[train_id].up(self.now_s, position):
+        if not self.ground_up or not self.channels[train_id].up(self.now_s, position):
             delay = onboard.reconnect_delay_s(self._jitter[train_id].random())
             self._push(self.now_s + delay, "connect", train_id)
             return
@@ -340,11 +407,16 @@ class LinkSim:
             self._after_onboard(conn.train_id, serial)
 
     def _on_dispatch_tick(self, _: None) -> None:
-        open_now = {t for t, c in self.live.items() if c.open}
-        for train_id in self.dispatch.registry.train_ids():
-            self.dispatch.connection(train_id, train_id in open_now)
-        self.execute(self.dispatch.tick(self.now_s))
+        if self.ground_up:
+            open_now = {t for t, c in self.live.items() if c.open}
+            for train_id in self.dispatch.registry.train_ids():
+                self.dispatch.connection(train_id, train_id in open_now)
+            self.execute(self.dispatch.tick(self.now_s))
         self._push(self.now_s + self.tick_s, "dispatch_tick", None)
+
+    def _new_dispatch(self) -> GroundDispatch:
+        timers = self.ground_config.timers
+        return GroundDispatch(self.line, validity_s=timers.cycle_s * timers.timeout_cycles)
 
     # ------------------------------------------------------------------ the two ends
 
@@ -368,7 +440,7 @@ class LinkSim:
         data = onboard.data_to_send()
         if data and serial is not None:
             self._send("up", train_id, serial, data)
-        failed = left = False
+        failed = left = registered = False
         listener = self.trains[train_id].on_event
         for event in onboard.events():
             self._count_onboard(train_id, event)
@@ -376,18 +448,29 @@ class LinkSim:
                 listener(event, self.now_s)
             failed |= isinstance(event, LinkFailed)
             left |= isinstance(event, Deregistered)
+            registered |= isinstance(event, Registered)
+        if left and train_id in self.retiring:
+            self.retired.add(train_id)  # the ground knows it has gone: it is off the line
         if (failed or left) and serial is not None:
             self._close(self._connections[serial], failure=failed)
+        elif registered and train_id in self.retiring:
+            self._leave(train_id)  # back on the radio only to say it has left
+            return
         self._schedule("onboard", train_id, onboard.next_deadline_s())
 
     def _after_ground(self, conn: _Connection) -> None:
         ground = conn.ground
         data = ground.data_to_send()
+        events = list(ground.events())
+        if self.journal is not None:
+            # persistence before effect, as on the live ground (a failing store stops the
+            # run: in a simulation it is a bug, not a fault to ride out)
+            self.journal.commit_step(ground.record, events, self.now_s)
         if data and conn.open:
             self._send("down", conn.train_id, conn.serial, data)
         failed = False
         commands: list[Command] = []
-        for event in ground.events():
+        for event in events:
             train_id = ground.train_id
             if isinstance(event, TrainRegistered):
                 old = self.live.get(event.train_id)
@@ -445,15 +528,24 @@ class LinkSim:
     def _deliver(self, train_id: int, command: Command) -> None:
         """On the train's live connection, else into its record for the next
         registration (as ``GroundServer._deliver``)."""
+
+        def apply(dest: GroundEndpoint | TrainRecord, now_s: float) -> None:
+            _apply(dest, command, now_s)
+
+        record = self.records.get(train_id)
+        if self.journal is not None:
+            self.journal.commit_request(
+                record, train_id, command_request(command), apply, self.now_s
+            )
         conn = self.live.get(train_id)
         if conn is not None and conn.open and conn.ground.train_id == train_id:
-            _apply(conn.ground, command, self.now_s)
+            apply(conn.ground, self.now_s)
             self._after_ground(conn)
             return
-        record = self.records.get(train_id)
         if record is None:
             record = self.records[train_id] = TrainRecord(train_id)
-        _apply(record, command, self.now_s)
+            record.history.not_before_us = round(self.ground_config.not_before_s * 1e6)
+        apply(record, self.now_s)
 
 
 def _apply(dest: GroundEndpoint | TrainRecord, command: Command, now_s: float) -> None:

@@ -38,6 +38,11 @@ TOML::
     train = 104
     stand_min = 10.0
 
+    [[events]]
+    at_min = 240.0
+    op = "ground_restart"           # the ground is killed (kill -9) and restarts from its
+    down_min = 2.0                  # store down_min later
+
 Every field is checked when the file is read, a dispatcher's operation by the same schema
 the admin port, the web page and the command line use, so a scenario that loads runs to
 its end. An error names the field (``services[2].every_min``), its value and what is allowed.
@@ -86,8 +91,9 @@ SERVICE_KEYS = (
     "supplement",
     "number_prefix",
 )
-#: the event that is not a dispatcher's operation
+#: the events that are not a dispatcher's operation
 TRAIN_FAILURE = "train_failure"
+GROUND_RESTART = "ground_restart"
 #: the link epoch the run starts at when the file gives none [s] (2027-01-15 08:00 UTC)
 DEFAULT_EPOCH_S = 1_800_000_000.0
 
@@ -99,11 +105,18 @@ class TrainFailure:
 
 
 @dataclass(frozen=True)
+class GroundRestart:
+    """The ground process is killed and starts again ``down_s`` later from its store."""
+
+    down_s: float
+
+
+@dataclass(frozen=True)
 class ScenarioEvent:
     """Something that happens ``at_s`` seconds into the run."""
 
     at_s: float
-    action: Operation | TrainFailure
+    action: Operation | TrainFailure | GroundRestart
     label: str
 
 
@@ -227,8 +240,11 @@ def _events(
         at_s = _number(table, "at_min", where, 0.0, duration_s / 60.0) * 60.0
         op = table.get("op")
         fields = {k: v for k, v in table.items() if k not in ("at_min", "op")}
-        action: Operation | TrainFailure
-        if op == TRAIN_FAILURE:
+        action: Operation | TrainFailure | GroundRestart
+        if op == GROUND_RESTART:
+            _check_keys(fields, where, ("down_min",))
+            action = GroundRestart(_number(fields, "down_min", where, 0.0, 24 * 60.0, 2.0) * 60.0)
+        elif op == TRAIN_FAILURE:
             _check_keys(fields, where, ("train", "stand_min"))
             train = fields.get("train")
             if train not in train_ids or isinstance(train, bool):

@@ -40,19 +40,16 @@ from railpilot.ground.dispatch import (
     Outcome,
     SendTargetPoint,
     command_trains,
-    restriction_from_view,
-    restriction_view,
 )
+from railpilot.ground.journal import declared_restrictions
 from railpilot.ground.occupancy import Occupancy
 from railpilot.ground.operations import (
-    ClearRestriction,
+    Operation,
     OperationError,
-    SetRestriction,
     Status,
     parse_operation,
 )
 from railpilot.ground.store import StoreError
-from railpilot.ground.targets import DeclaredRestriction
 from railpilot.line.model import RailLine
 from railpilot.link import Event
 
@@ -107,12 +104,7 @@ class DispatchHost:
         self._worker = ThreadPoolExecutor(max_workers=1, thread_name_prefix="occupancy")
         store = self.server.store
         if store is not None:
-            restrictions: dict[int, DeclaredRestriction] = {}
-            for entry in store.audit_log():
-                if entry.action == "restriction_set":
-                    restrictions[int(entry.detail["id"])] = restriction_from_view(entry.detail)
-                elif entry.action == "restriction_clear":
-                    restrictions.pop(int(entry.detail["id"]), None)
+            restrictions = declared_restrictions(store.audit_log())
             self.dispatch.restore(store.load(), self._clock(), restrictions)
             kv(
                 log,
@@ -269,23 +261,16 @@ class DispatchHost:
                 }
             )
 
-    def _record(self, operation: object, outcome: Outcome, actor: str, now_s: float) -> None:
-        """Declared restrictions go to the audit log before their target points leave."""
-        store = self.server.store
-        if store is None:
+    def _record(self, operation: Operation, outcome: Outcome, actor: str, now_s: float) -> None:
+        """What the operation changed on the line goes to the store before its deliveries
+        leave (GroundJournal.record_operation)."""
+        journal = self.server.journal
+        if journal is None:
             return
-        if isinstance(operation, SetRestriction | ClearRestriction):
-            ident = outcome.result["id"]
-            action = (
-                "restriction_set" if isinstance(operation, SetRestriction) else "restriction_clear"
-            )
-            detail: dict[str, Any] = {"id": ident}
-            if isinstance(operation, SetRestriction):
-                detail |= restriction_view(operation.restriction)
-            try:
-                store.audit(action, actor=actor, at_s=now_s, detail=detail)
-            except StoreError as exc:
-                raise OperationError({"form": f"the store refused it: {exc}"}) from None
+        try:
+            journal.record_operation(operation, outcome.result, actor, now_s)
+        except StoreError as exc:
+            raise OperationError({"form": f"the store refused it: {exc}"}) from None
 
     # ------------------------------------------------------------------ carrying out
 

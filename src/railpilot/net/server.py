@@ -38,13 +38,20 @@ import time
 from collections import Counter
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
-from dataclasses import fields as dataclass_fields
-from enum import Enum
 from typing import Any
 
+from railpilot.ground.journal import (
+    EVENT_NAMES,
+    Apply,
+    GroundJournal,
+    Request,
+    dispatch_request,
+    target_point_request,
+    tsr_cancel_request,
+    tsr_set_request,
+)
 from railpilot.ground.store import GroundStore, Snapshot, StoreError
 from railpilot.link import (
-    DeliveryState,
     DispatchAcknowledged,
     DispatchCommand,
     Event,
@@ -69,10 +76,8 @@ from railpilot.link import (
     TsrCancelAcknowledged,
     TsrRefusedByTrain,
     TsrSet,
-    TsrState,
 )
 from railpilot.link.config import REPLAY_WINDOW_S
-from railpilot.link.ground import Delivery, TsrDelivery
 from railpilot.units import mps_to_kmh
 
 from .logfmt import kv
@@ -253,9 +258,8 @@ class GroundServer:
     ) -> None:
         self.config = config
         self.store = store
-        #: (kind, train id, id) -> (state, message) as last committed to ``store``: what
-        #: a step changed is what differs from it.
-        self._stored: dict[tuple[str, int, int], tuple[Enum, Any]] = {}
+        #: what the ground commits to ``store`` before anything leaves, and restores
+        self.journal = GroundJournal(store) if store is not None else None
         self.replay_window_s = replay_window_s
         self.keys = keys
         self.host = host
@@ -345,18 +349,16 @@ class GroundServer:
         """Trains that have registered at least once (the targets of ``all``)."""
         return sorted(t for t, r in self.records.items() if r.registration is not None)
 
-    def _deliver(
-        self, train_id: int, request: _Request, apply: Callable[[Any, float], None]
-    ) -> str:
+    def _deliver(self, train_id: int, request: Request, apply: Apply) -> str:
         """Run ``apply(endpoint_or_record, now)`` on the live endpoint, else on the record.
 
-        With a store, the request is first committed (:meth:`_persist_request`): a refused
-        one writes nothing, and a failed write changes and sends nothing.
+        With a store, the request is first committed (:meth:`GroundJournal.commit_request`):
+        a refused one writes nothing, and a failed write changes and sends nothing.
         """
         action = request.action
         now = time.time()
-        if self.store is not None:
-            self._persist_request(train_id, request, apply, now)
+        if self.journal is not None:
+            self.journal.commit_request(self.records.get(train_id), train_id, request, apply, now)
         conn = self.live.get(train_id)
         if conn is not None and conn.open and conn.endpoint.train_id == train_id:
             apply(conn.endpoint, now)
@@ -378,9 +380,7 @@ class GroundServer:
         kv(log, logging.INFO, action, train=train_id, outcome=outcome)
         return outcome
 
-    def _each(
-        self, train_ids: Iterable[int], request: _Request, apply: Callable[[Any, float], None]
-    ) -> dict[int, str]:
+    def _each(self, train_ids: Iterable[int], request: Request, apply: Apply) -> dict[int, str]:
         """Deliver to every train; a refusal for one train does not stop the others."""
         results: dict[int, str] = {}
         for train_id in train_ids:
@@ -425,16 +425,7 @@ class GroundServer:
             else:
                 target.add_tsr(tsr)
 
-        detail = {
-            "session": tsr.session,
-            "start_m": tsr.start_m,
-            "end_m": tsr.end_m,
-            "limit_mps": tsr.limit_mps,
-            "valid_from_s": tsr.valid_from_s,
-            "valid_until_s": tsr.valid_until_s,
-            "reason": reason,
-        }
-        return self._each(train_ids, _Request("tsr_set", actor, detail, reason), apply)
+        return self._each(train_ids, tsr_set_request(tsr, actor, reason), apply)
 
     def cancel_tsr(
         self, train_ids: Iterable[int], session: int, *, actor: str = "api"
@@ -447,8 +438,7 @@ class GroundServer:
             else:
                 target.cancel_tsr(session)
 
-        request = _Request("tsr_cancel", actor, {"session": session}, cancels=session)
-        return self._each(train_ids, request, apply)
+        return self._each(train_ids, tsr_cancel_request(session, actor), apply)
 
     def send_target_point(
         self, train_ids: Iterable[int], target: TargetPoint, *, actor: str = "api"
@@ -459,12 +449,7 @@ class GroundServer:
             else:
                 dest.add_target_point(target)
 
-        detail = {
-            "target_id": target.target_id,
-            "position_m": target.position_m,
-            "reason": target.reason.name,
-        }
-        return self._each(train_ids, _Request("target_point", actor, detail), apply)
+        return self._each(train_ids, target_point_request(target, actor), apply)
 
     def send_dispatch_command(
         self, train_ids: Iterable[int], command: DispatchCommand, *, actor: str = "api"
@@ -475,8 +460,7 @@ class GroundServer:
             else:
                 dest.add_dispatch_command(command)
 
-        detail = {"command": command.command_number, "text": command.text}
-        return self._each(train_ids, _Request("dispatch", actor, detail), apply)
+        return self._each(train_ids, dispatch_request(command, actor), apply)
 
     # --- status -------------------------------------------------------------------------------
 
@@ -567,159 +551,26 @@ class GroundServer:
     # --- store --------------------------------------------------------------------------------
 
     def _restore(self, snapshot: Snapshot) -> None:
-        """Rebuild the train records from the store (final states included, never resent).
-
-        Every delivery gets ``next_send_s = 0``: the core sends what is pending as soon as
-        the train registers, and (seeing a registration) turns each ACTIVE TSR into
-        RECONFIRMING, so the train confirms it still enforces it - the train may have lost
-        it while the ground was down. A TSR the train still holds is acknowledged again,
-        never applied twice (the onboard applies a session once).
-        """
-        not_before_us = round(self.config.not_before_s * 1e6)
-        counts: Counter[str] = Counter()
-        for stored in snapshot.trains.values():
-            train_id = stored.train_id
-            record = TrainRecord(train_id, registration=stored.registration)
-            record.history.not_before_us = not_before_us
-            for session, state in stored.tsrs.items():
-                tsr = snapshot.tsrs[session].tsr
-                record.tsrs[session] = TsrDelivery(tsr, state)
-                self._stored["tsr", train_id, session] = (state, tsr)
-                counts[state.name] += 1
-            for kind, book, items in (
-                ("target_point", record.target_points, stored.target_points),
-                ("dispatch_command", record.dispatch_commands, stored.dispatch_commands),
-            ):
-                for ident, (message, dstate) in items.items():
-                    book[ident] = Delivery(message, dstate)
-                    self._stored[kind, train_id, ident] = (dstate, message)
-                    counts[dstate.name] += 1
-            self.records[train_id] = record
-        summary = {
-            "trains": len(snapshot.trains),
-            "tsrs": len(snapshot.tsrs),
-            **{state.lower(): n for state, n in sorted(counts.items())},
-        }
-        if self.store is not None:  # where a restart shows in the audit log
-            self.store.audit("restored", actor="ground", at_s=time.time(), detail=summary)
-        kv(log, logging.INFO, "restored", store=self.store.path if self.store else "", **summary)
-
-    def _persist_request(
-        self, train_id: int, request: _Request, apply: Callable[[Any, float], None], now: float
-    ) -> None:
-        """Commit a dispatcher's request for one train before anything else happens.
-
-        The request is first run on a copy of the train's record, so the core refuses it
-        (``LinkError``) exactly as it would for real, and nothing is written then. What
-        the copy then holds is committed with the audit entry in one transaction; only
-        after that does the real record change and the frame leave.
-        """
-        assert self.store is not None
-        existing = self.records.get(train_id)
-        scratch = _scratch(existing if existing is not None else TrainRecord(train_id))
-        apply(scratch, now)
-        changes = self._changes(scratch)
-        with self.store.transaction():
-            self._write_changes(train_id, changes, now, request.actor, request.reason)
-            if request.cancels is not None:
-                self.store.record_tsr_cancel(request.cancels, actor=request.actor, at_s=now)
-            self.store.audit(
-                request.action,
-                actor=request.actor,
-                at_s=now,
-                train_id=train_id,
-                detail=request.detail,
-            )
-        self._stored.update((key, value) for key, value, _ in changes)
+        """Rebuild the train records from the store (:meth:`GroundJournal.restore`)."""
+        assert self.journal is not None
+        self.records, summary = self.journal.restore(
+            snapshot, self.config.not_before_s, time.time()
+        )
+        kv(log, logging.INFO, "restored", store=self.journal.store.path, **summary)
 
     def _persist_step(self, conn: GroundConnection, events: list[Event], now_s: float) -> bool:
         """Commit what one step of a connection changed; False (and the connection closed)
         when the store could not take it."""
-        assert self.store is not None
-        record = conn.endpoint.record
-        changes = self._changes(record) if record is not None else []
-        noted = [e for e in events if isinstance(e, _AUDITED)]
-        if not changes and not noted:
-            return True
+        assert self.journal is not None
         try:
-            with self.store.transaction():
-                for event in noted:  # the cause (an acknowledgement...) before its effect
-                    self._audit_event(event, now_s)
-                if record is not None:
-                    self._write_changes(record.train_id, changes, now_s, "ground", "")
-                for key, (state, _), before in changes:
-                    if before is not None and before[0] is not state:
-                        self.store.audit(
-                            "delivery_state",
-                            actor="ground",
-                            at_s=now_s,
-                            train_id=key[1],
-                            detail={
-                                "kind": key[0],
-                                "id": key[2],
-                                "from": before[0].name,
-                                "to": state.name,
-                            },
-                        )
+            self.journal.commit_step(conn.endpoint.record, events, now_s)
         except StoreError as exc:
             kv(log, logging.ERROR, "store_failed", train=conn.endpoint.train_id, error=exc)
             # This step's changes are not on disk: its frames must not leave. The train
             # reconnects, and the next step writes what is still missing.
             conn.close("store write failed")
             return False
-        self._stored.update((key, value) for key, value, _ in changes)
         return True
-
-    def _audit_event(self, event: Event, now_s: float) -> None:
-        assert self.store is not None
-        values = {f.name: getattr(event, f.name) for f in dataclass_fields(event)}
-        train_id = values.pop("train_id")
-        if isinstance(event, TrainRegistered):
-            self.store.record_registration(train_id, event.request, at_s=now_s)
-            request = event.request
-            values = {f.name: getattr(request, f.name) for f in dataclass_fields(request)}
-        detail = {k: getattr(v, "name", v) for k, v in values.items()}  # enums by name
-        self.store.audit(
-            _EVENT_NAMES[type(event)],
-            actor=f"train {train_id}",
-            at_s=now_s,
-            train_id=train_id,
-            detail=detail,
-        )
-
-    def _changes(self, record: TrainRecord) -> list[_Change]:
-        """Deliveries of ``record`` whose state or message differ from what was committed."""
-        train_id = record.train_id
-        out: list[_Change] = []
-        for kind, book in (
-            ("tsr", record.tsrs),
-            ("target_point", record.target_points),
-            ("dispatch_command", record.dispatch_commands),
-        ):
-            for ident, item in book.items():
-                key = (kind, train_id, ident)
-                value = (item.state, item.tsr if isinstance(item, TsrDelivery) else item.message)
-                before = self._stored.get(key)
-                if before != value:
-                    out.append((key, value, before))
-        return out
-
-    def _write_changes(
-        self, train_id: int, changes: list[_Change], now_s: float, actor: str, reason: str
-    ) -> None:
-        assert self.store is not None
-        for (kind, _, ident), (state, message), before in changes:
-            if isinstance(state, TsrState):
-                if before is None or before[1] != message:
-                    # idempotent: a TSR already recorded keeps its first actor and reason
-                    self.store.record_tsr(message, actor=actor, reason=reason, at_s=now_s)
-                self.store.record_tsr_state(train_id, ident, state, at_s=now_s)
-            elif not isinstance(state, DeliveryState):
-                raise TypeError(f"{kind} {ident}: {state!r} is not a delivery state")
-            elif before is not None and before[1] == message:
-                self.store.record_delivery_state(train_id, type(message), ident, state, at_s=now_s)
-            else:
-                self.store.record_delivery(train_id, message, state, at_s=now_s)
 
     # --- internals ----------------------------------------------------------------------------
 
@@ -785,7 +636,7 @@ class GroundServer:
             self._view(event.train_id).acks[type(event).__name__] += 1
             fields = {k: getattr(event, k) for k in event.__dataclass_fields__}
             fields = {k: getattr(v, "name", v) for k, v in fields.items()}
-            kv(log, logging.INFO, _EVENT_NAMES[type(event)], **fields)
+            kv(log, logging.INFO, EVENT_NAMES[type(event)], **fields)
         elif isinstance(event, FrameRejected):
             conn.rejections.record(event, now_s, train=train_id, peer=conn.peer)
         elif isinstance(event, SequenceGap):
@@ -804,41 +655,3 @@ class GroundServer:
             conn.close(f"link failed: {event.reason}")
         for listener in self._listeners:
             listener(train_id, event, now_s)
-
-
-_EVENT_NAMES: dict[type, str] = {
-    TsrAcknowledged: "tsr_acknowledged",
-    TsrCancelAcknowledged: "tsr_cancel_acknowledged",
-    TsrRefusedByTrain: "tsr_refused_by_train",
-    DispatchAcknowledged: "dispatch_acknowledged",
-    TargetPointAcknowledged: "target_point_acknowledged",
-    TrainRegistered: "registered",
-    TrainDeregistered: "deregistered",
-}
-#: Events that go to the store's audit log (TrainRegistered also updates ``trains``).
-_AUDITED = tuple(_EVENT_NAMES)
-
-#: ((kind, train id, id), (state, message) now, (state, message) committed or None)
-_Change = tuple[tuple[str, int, int], tuple[Enum, Any], tuple[Enum, Any] | None]
-
-
-@dataclass(frozen=True, slots=True)
-class _Request:
-    """A dispatcher's request as the store keeps it."""
-
-    action: str  # also the log event name
-    actor: str
-    detail: dict[str, Any]
-    reason: str = ""  # TSR reason (tsr_set)
-    cancels: int | None = None  # TSR session (tsr_cancel)
-
-
-def _scratch(record: TrainRecord) -> TrainRecord:
-    """A copy of the delivery books of ``record`` to try a request on (the record methods
-    touch nothing else)."""
-    return TrainRecord(
-        record.train_id,
-        tsrs={s: replace(d) for s, d in record.tsrs.items()},
-        dispatch_commands={i: replace(d) for i, d in record.dispatch_commands.items()},
-        target_points={i: replace(d) for i, d in record.target_points.items()},
-    )

@@ -19,6 +19,7 @@ REPRODUCTIONS: dict[str, str] = {
     "link-demo": "railpilot.reproduce.link_demo",
     "precise-stop": "railpilot.reproduce.precise_stop",
     "retiming": "railpilot.reproduce.retiming",
+    "line-day": "railpilot.reproduce.line_day",
     # last: Playwright's sync API leaves an event loop marked running in this thread
     "dashboard": "railpilot.reproduce.dashboard",
 }
