@@ -45,9 +45,20 @@ def six_trains() -> list[SimTrain]:
 def set_tsr(sim: LinkSim, start_km: float, end_km: float) -> tuple[int, tuple[int, ...]]:
     fields = {"start_km": start_km, "end_km": end_km, "limit_kmh": 40, "valid_until_min": 60}
     op = parse_operation("tsr_set", {**fields, "reason": "works"}, line=LINE, now_s=sim.now_s)
-    outcome = sim.dispatch.execute(op, "d1", sim.now_s)
-    sim.execute(outcome.commands)
+    outcome = sim.operate(op, "d1")
     return outcome.result["session"], tuple(outcome.result["trains"])
+
+
+def assert_applied_once_by(sim: LinkSim, session: int, concerned: tuple[int, ...]) -> None:
+    """Every concerned train applied the TSR once, no other train at all; the ground holds
+    it acknowledged (after a reconnect the ground asks again, RECONFIRMING, and the train,
+    which already applies it, answers without applying it twice)."""
+    for train_id in IDS:
+        applied = sim.stats[train_id].tsr_applied[session]
+        assert applied == (1 if train_id in concerned else 0), train_id
+    for train_id in concerned:
+        state = sim.records[train_id].tsrs[session].state
+        assert state in (TsrState.ACTIVE, TsrState.RECONFIRMING)
 
 
 def lossy(seed: int) -> LinkSim:
@@ -66,14 +77,7 @@ def test_a_tsr_reaches_every_concerned_train_exactly_once_through_loss_and_a_dea
     sim.run_until(900.0)
     report = sim.link_report()
     assert report["channel"]["lost_random"] > 0 and report["link_failures"] > 0
-    for train_id in IDS:
-        applied = sim.stats[train_id].tsr_applied[session]
-        assert applied == (1 if train_id in concerned else 0), train_id
-    # acknowledged; after a reconnect the ground asks again (RECONFIRMING), and the train,
-    # which already applies it, answers without applying it twice (checked above)
-    for train_id in concerned:
-        state = sim.records[train_id].tsrs[session].state
-        assert state in (TsrState.ACTIVE, TsrState.RECONFIRMING)
+    assert_applied_once_by(sim, session, concerned)
 
 
 def test_the_same_seed_gives_the_same_run_and_another_seed_another() -> None:
@@ -143,18 +147,13 @@ def test_a_ground_killed_with_deliveries_pending_resumes_them_from_its_store(see
         sim.run_until(900.0)
         (restart,) = sim.restarts
         assert restart["restored"]["pending_set"] == len(concerned)
-        for train_id in IDS:
-            applied = sim.stats[train_id].tsr_applied[session]
-            assert applied == (1 if train_id in concerned else 0), train_id
+        assert_applied_once_by(sim, session, concerned)
         for train_id in concerned:
-            state = sim.records[train_id].tsrs[session].state
-            assert state in (TsrState.ACTIVE, TsrState.RECONFIRMING)
             assert session in sim.onboard[train_id].active_tsrs
         # the restarted dispatch core still knows the TSR, and cancels it everywhere
         op = parse_operation("tsr_cancel", {"session": session}, line=LINE, now_s=sim.now_s)
-        outcome = sim.dispatch.execute(op, "d1", sim.now_s)
+        outcome = sim.operate(op, "d1")
         assert sorted(outcome.result["trains"]) == sorted(concerned)
-        sim.execute(outcome.commands)
         sim.run_until(1200.0)
         for train_id in concerned:
             assert sim.records[train_id].tsrs[session].state is TsrState.CANCELLED

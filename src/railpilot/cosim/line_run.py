@@ -289,10 +289,7 @@ def _event_action(
             sim.call_at(t + RETRY_WHILE_DOWN_S, act)
             return
         else:
-            outcome = sim.dispatch.execute(action, "scenario", sim.now_s)
-            if sim.journal is not None:
-                sim.journal.record_operation(action, outcome.result, "scenario", sim.now_s)
-            sim.execute(outcome.commands)
+            outcome = sim.operate(action, "scenario")
             entry["result"] = outcome.result
             if isinstance(action, CancelTsr):
                 # lifted from the track when the dispatcher cancels it

@@ -49,10 +49,12 @@ from railpilot.ground.dispatch import (
     Command,
     DeliverTsr,
     GroundDispatch,
+    Outcome,
     SendTargetPoint,
     command_trains,
 )
 from railpilot.ground.journal import GroundJournal, command_request, declared_restrictions
+from railpilot.ground.operations import Operation
 from railpilot.ground.store import GroundStore
 from railpilot.line.model import RailLine
 from railpilot.link import (
@@ -276,6 +278,16 @@ class LinkSim:
         self.live.clear()
         self.dispatch = self._new_dispatch()
         self._push(self.now_s + down_s, "ground_start", None)
+
+    def operate(self, operation: Operation, actor: str) -> Outcome:
+        """A dispatcher's operation, now, as ``DispatchHost`` carries it out: the core
+        decides, what it changed on the line goes to the store, then its deliveries leave.
+        Raises :class:`~railpilot.ground.operations.OperationError` (nothing done)."""
+        outcome = self.dispatch.execute(operation, actor, self.now_s)
+        if self.journal is not None:
+            self.journal.record_operation(operation, outcome.result, actor, self.now_s)
+        self.execute(outcome.commands)
+        return outcome
 
     def execute(self, commands: Iterable[Command]) -> None:
         """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
