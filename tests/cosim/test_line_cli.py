@@ -57,6 +57,26 @@ def test_bad_arguments_are_refused(tmp_path, capsys, args, field):
     assert field in capsys.readouterr().err
 
 
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["--speedup", "0"], "--speedup"),
+        (["--speedup", "nan"], "--speedup"),
+        (["--until-min", "-5"], "--until-min"),
+        (["--http-port", "70000"], "--http-port"),
+        (["--screenshot-at-min", "5"], "--screenshot-at-min"),  # without --screenshot
+        (["--screenshot", "x.png", "--screenshot-at-min", "999"], "--screenshot-at-min"),
+    ],
+)
+def test_line_run_refuses_bad_arguments_before_starting_anything(tmp_path, capsys, args, field):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    assert main(["line", "run", str(path), *args]) == 2
+    captured = capsys.readouterr()
+    assert field in captured.err and captured.out == ""
+    assert not (tmp_path / "x.png").exists()
+
+
 def test_a_bad_file_is_refused_naming_the_field(tmp_path, capsys):
     path = tmp_path / "bad.toml"
     path.write_text(TINY.replace('kind = "loaded"', 'kind = "tram"'))

@@ -76,7 +76,12 @@ def test_a_tsr_goes_to_the_trains_whose_route_reaches_it_and_later_to_newcomers(
         report(core, train, km, direction=direction)
     outcome = do(core, "tsr_set", **TSR)
     # 1 runs up towards km 6-7; 2 is past it (tail at 8.0); 3 runs down towards it
-    assert outcome.result == {"session": 1, "trains": [1, 3]}
+    assert outcome.result == {
+        "session": 1,
+        "trains": [1, 3],
+        "valid_from_s": T0,  # from now (no valid_from_min)
+        "valid_until_s": T0 + 60 * 60.0,  # valid_until_min = 60
+    }
     (command,) = outcome.commands
     assert isinstance(command, DeliverTsr)
     assert command.train_ids == (1, 3)

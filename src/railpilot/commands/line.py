@@ -1,5 +1,6 @@
 """``railpilot line simulate SCENARIO``: a whole line, trains, ground and radio together,
-in simulated time, with paper 001's KPIs (docs/line-run.md)."""
+in simulated time, with paper 001's KPIs; ``railpilot line run SCENARIO --speedup 60``: the
+same live, the ground a server and each train a process over TCP (docs/line-run.md)."""
 
 from __future__ import annotations
 
@@ -52,6 +53,80 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--out", type=Path, help="folder for the time-distance figure")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
+    p = sub.add_parser(
+        "run",
+        help="run a line scenario live: the ground a server, each train a process over TCP",
+        description="Run SCENARIO live: the ground (link server, store, dispatch, admin port "
+        "and dashboard) in one process and every train (onboard driving system, simulation "
+        "core, onboard unit) in its own, over TCP on loopback, on a clock --speedup times "
+        "the wall's. Prints the dashboard's address when the ground is up, and the KPIs of "
+        "`line simulate` at the end. The radio is loopback TCP: the file's [channel] is not "
+        "applied (docs/line-run.md, Live).",
+    )
+    p.add_argument("scenario", type=Path, help="line-run TOML file (examples/line_live_short.toml)")
+    p.add_argument(
+        "--speedup",
+        type=float,
+        default=60.0,
+        help="simulated seconds per wall-clock second (default 60: an hour in a minute)",
+    )
+    p.add_argument("--seed", type=int, help="seed (default: the file's)")
+    p.add_argument("--until-min", type=float, help="stop after this many simulated minutes")
+    p.add_argument("--http-port", type=int, default=0, help="dashboard port (default: a free one)")
+    p.add_argument("--screenshot", type=Path, help="PNG of the dashboard taken during the run")
+    p.add_argument(
+        "--screenshot-at-min", type=float, help="when to take it [simulated min] (default: mid-run)"
+    )
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run_live_command)
+
+
+def run_live_command(args: argparse.Namespace) -> int:
+    """``railpilot line run``: the scenario live (cosim/live.py)."""
+    from railpilot.cosim.live import MAX_SPEEDUP, LiveOptions, run_live
+    from railpilot.cosim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if not (math.isfinite(args.speedup) and 1.0 <= args.speedup <= MAX_SPEEDUP):
+        raise ConfigError("--speedup", args.speedup, f"a time scale in [1, {MAX_SPEEDUP:g}]")
+    if args.until_min is not None and not (math.isfinite(args.until_min) and args.until_min > 0):
+        raise ConfigError("--until-min", args.until_min, "a number of minutes > 0")
+    if not 0 <= args.http_port <= 65535:
+        raise ConfigError("--http-port", args.http_port, "0..65535 (0: a free one)")
+    minutes = scenario.duration_s / 60.0
+    if args.screenshot_at_min is not None and not (
+        math.isfinite(args.screenshot_at_min) and 0.0 < args.screenshot_at_min < minutes
+    ):
+        raise ConfigError(
+            "--screenshot-at-min", args.screenshot_at_min, f"minutes in (0, {minutes:g})"
+        )
+    until_s = None if args.until_min is None else args.until_min * 60.0
+    at_s = None
+    if args.screenshot is not None:
+        end = scenario.duration_s if until_s is None else min(until_s, scenario.duration_s)
+        at_s = end / 2.0 if args.screenshot_at_min is None else args.screenshot_at_min * 60.0
+    elif args.screenshot_at_min is not None:
+        raise ConfigError("--screenshot-at-min", args.screenshot_at_min, "with --screenshot PATH")
+
+    def announce(url: str, token: str) -> None:
+        log(f"dashboard: {url}  token: {token}")
+
+    options = LiveOptions(
+        speedup=args.speedup,
+        seed=args.seed,
+        until_s=until_s,
+        http_port=args.http_port,
+        screenshot=args.screenshot,
+        screenshot_at_s=at_s,
+        on_dashboard=announce,
+    )
+    result = run_live(args.scenario, options)
+    out = result.kpis()
+    if args.json:
+        print_json(out)
+    else:
+        _print_text(out)
+    return 0
 
 
 def run(args: argparse.Namespace) -> int:

@@ -242,8 +242,10 @@ class TrainDriver:
         return head.item(), stepper.speed_mps
 
     def next_stop_m(self) -> float:
-        """Km post [m] of the station the train stops at next."""
-        k = self._k + 1 if self._running is not None else self._k
+        """Km post [m] of the station the train stops at next: the next one of its
+        timetable, also while it stands at one (its exit signal is ahead of it), or its
+        destination once there."""
+        k = self._k + 1
         station = self.line.station(self.service.stops[min(k, len(self.service.stops) - 1)].station)
         return station.stop_m(self.direction)
 
@@ -474,6 +476,11 @@ class TrainDriver:
             # nothing ahead may be entered (a failure where it stands, a red signal it is
             # already past on the ground's lagging view): brake to a stand now
             if v_now <= 0.0:
+                # at rest: it stands here. It may have been setting off on a plan made a
+                # moment before (the exit signal turned red in the second it departed:
+                # it went on to pass it at red, before this hold)
+                stepper.hold()
+                running.stopped = True
                 return
             end_s, (s_stand, v_stand) = _stand_curve(
                 s_now, v_now, self.preset.train.max_service_decel_mps2

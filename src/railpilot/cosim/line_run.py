@@ -33,51 +33,39 @@ KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
 from __future__ import annotations
 
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Protocol
 
 import numpy as np
 
-from railpilot.ground.occupancy import (
-    Occupancy,
-    TrainReport,
-    compute_occupancy,
-    direction_sign,
-)
 from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.store import AuditEntry, Snapshot, Store
-from railpilot.ground.targets import find_target
-from railpilot.link import OnboardConfig
+from railpilot.link import KeyStore, OnboardConfig
 from railpilot.net.loadtest import loadtest_keys
 
-from .driver import TrainDriver
+from .driver import SectionRun, Service, TrainDriver
 from .link_sim import LinkSim, SimTrain
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
+from .trackside import Trackside, TrainSeen, TsrWatch
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
-#: how many block sections ahead a cab signal shows (3-aspect signalling: the next
-#: signal's aspect tells whether the one after it is red)
-CAB_SIGNAL_BLOCKS = 2
 #: the onboard powers up this long before its first departure [s]
 POWER_ON_LEAD_S = 120.0
-#: over a limit by more than this is a violation [m/s] (the speed sensor's resolution)
-OVERSPEED_TOLERANCE_MPS = 0.01
 #: a dispatcher's operation that finds the ground down is tried again this much later [s]
 RETRY_WHILE_DOWN_S = 10.0
 
 
-@dataclass
-class _TsrWatch:
-    """A TSR as the dispatcher set it: the truth the trains are checked against."""
+class DrivenTrain(Protocol):
+    """A train as the KPIs read it: its timetable, the sections it ran, whether it reached
+    its destination and how often it stopped at red (a :class:`TrainDriver`, or a live
+    train's report, cosim/live.py)."""
 
-    start_m: float
-    end_m: float
-    limit_mps: float
-    valid_from_s: float  # epoch
-    valid_until_s: float
-    session: int
+    service: Service
+    sections: list[SectionRun]
+    finished: bool
+    red_signal_stops: int
 
 
 @dataclass
@@ -88,7 +76,7 @@ class LineResult:
     scenario: LineScenario
     seed: int
     advised: bool
-    drivers: dict[int, TrainDriver]
+    drivers: Mapping[int, DrivenTrain]
     trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
     tsr_violations: list[dict[str, Any]]
     signals_passed_at_red: list[dict[str, Any]]
@@ -105,6 +93,8 @@ class LineResult:
     onboard_tsrs: dict[int, list[int]] = field(default_factory=dict)
     #: where the run stopped [s since its start] (None: the scenario's end)
     end_s: float | None = None
+    #: a live run's (cosim/live.py): its time scale and the dashboard's screenshot
+    live: dict[str, Any] | None = None
 
     @property
     def sim_s(self) -> float:
@@ -172,6 +162,7 @@ class LineResult:
             "link": self.link,
             "ground_restarts": self.restarts,
             "wall_s": round(self.wall_s, 3),
+            **({"live": self.live} if self.live is not None else {}),
             "realtime_factor": round(self.sim_s / self.wall_s, 1) if self.wall_s > 0 else None,
         }
         if baseline is not None:
@@ -198,6 +189,37 @@ def _mean(values: list[float]) -> float | None:
     return round(float(np.mean(values)), 3) if values else None
 
 
+def line_train(
+    scenario: LineScenario, service: Service, advised: bool
+) -> tuple[TrainDriver, OnboardConfig]:
+    """One train of ``scenario``: its driver (powered on ``POWER_ON_LEAD_S`` before its
+    first departure) and its onboard unit's link configuration."""
+    power_on = max(service.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
+    driver = TrainDriver(
+        scenario.line,
+        service,
+        scenario.epoch_s,
+        power_on,
+        advised=advised,
+        margin_kmh=scenario.margin_kmh,
+    )
+    config = OnboardConfig(
+        train_id=service.train_id,
+        ground_id=1,
+        train_number=service.number,
+        loco_number=f"HXD1{service.train_id % 10000:04d}",
+        driver_id=service.train_id,
+        train_length_m=driver.preset.train.length_m,
+    )
+    return driver, config
+
+
+def line_keys(scenario: LineScenario, seed: int) -> KeyStore:
+    """The trains' link keys of a run (derived from its seed, as the load test's)."""
+    ids = [s.train_id for s in scenario.services]
+    return loadtest_keys(seed, range(min(ids), max(ids) + 1))
+
+
 def run_line(
     scenario: LineScenario,
     *,
@@ -214,27 +236,15 @@ def run_line(
     drivers: dict[int, TrainDriver] = {}
     trains = []
     for service in scenario.services:
-        power_on = max(service.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
-        driver = TrainDriver(
-            line, service, epoch, power_on, advised=advised, margin_kmh=scenario.margin_kmh
-        )
+        driver, config = line_train(scenario, service, advised)
         drivers[service.train_id] = driver
-        config = OnboardConfig(
-            train_id=service.train_id,
-            ground_id=1,
-            train_number=service.number,
-            loco_number=f"HXD1{service.train_id % 10000:04d}",
-            driver_id=service.train_id,
-            train_length_m=driver.preset.train.length_m,
-        )
-        trains.append(SimTrain(config, driver, power_on, driver.on_event))
-    ids = [s.train_id for s in scenario.services]
-    keys = loadtest_keys(seed, range(min(ids), max(ids) + 1))
+        trains.append(SimTrain(config, driver, driver.power_on_s, driver.on_event))
+    keys = line_keys(scenario, seed)
     # the ground keeps its TSRs, deliveries and audit log in a store, as the live ground
     # does (in memory: it outlives the simulated ground process, not this one)
     store = Store(":memory:", synchronous="NORMAL")
     sim = LinkSim(line, trains, scenario.channel, keys, seed=seed, start_s=epoch, store=store)
-    watch = _Trackside(sim, drivers, on_watch)
+    watch = _Watch(sim, drivers, on_watch)
     events: list[dict[str, Any]] = []
     for event in scenario.events:
         sim.call_at(event.at_s, _event_action(sim, drivers, watch, event, events))
@@ -250,9 +260,12 @@ def run_line(
         seed,
         advised,
         drivers,
-        {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in watch.trace.items()},
-        watch.tsr_violations,
-        watch.passed_at_red,
+        {
+            i: np.asarray(rows, dtype=float).reshape(-1, 3)
+            for i, rows in watch.trackside.trace.items()
+        },
+        watch.trackside.tsr_violations,
+        watch.trackside.passed_at_red,
         sim.link_report(),
         {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
         wall,
@@ -268,7 +281,7 @@ def run_line(
 def _event_action(
     sim: LinkSim,
     drivers: dict[int, TrainDriver],
-    watch: _Trackside,
+    watch: _Watch,
     event: ScenarioEvent,
     log: list[dict[str, Any]],
 ) -> Callable[[], None]:
@@ -293,9 +306,7 @@ def _event_action(
             entry["result"] = outcome.result
             if isinstance(action, CancelTsr):
                 # lifted from the track when the dispatcher cancels it
-                for tsr in watch.tsrs:
-                    if tsr.session == action.session:
-                        tsr.valid_until_s = min(tsr.valid_until_s, sim.now_s)
+                watch.trackside.lift_tsr(action.session, sim.now_s)
             elif isinstance(action, SetTsr):
                 session = int(outcome.result["session"])
                 entry["tsr"] = {
@@ -306,8 +317,8 @@ def _event_action(
                     "from_s": action.valid_from_s - sim.start_s,
                     "until_s": action.valid_until_s - sim.start_s,
                 }
-                watch.tsrs.append(
-                    _TsrWatch(
+                watch.trackside.tsrs.append(
+                    TsrWatch(
                         action.start_m,
                         action.end_m,
                         action.limit_mps,
@@ -321,9 +332,10 @@ def _event_action(
     return act
 
 
-class _Trackside:
-    """What the line's own equipment sees once a second (module docstring): every
-    train's true position, the signals' aspects, the TSRs and red signals obeyed."""
+class _Watch:
+    """The co-simulation's trackside: once a second, every train's true position from its
+    driver, handed to the :class:`~railpilot.cosim.trackside.Trackside` at one instant;
+    its cab views back to the drivers; a train at its destination retired from the link."""
 
     def __init__(
         self,
@@ -334,20 +346,15 @@ class _Trackside:
         self.sim = sim
         self.drivers = drivers
         self.on_watch = on_watch
-        self.trace: dict[int, list[tuple[float, float, float]]] = {i: [] for i in drivers}
-        self.tsrs: list[_TsrWatch] = []
-        self.tsr_violations: list[dict[str, Any]] = []
-        self._violated: set[tuple[int, int]] = set()
-        self.passed_at_red: list[dict[str, Any]] = []
-        self._occupancy: Occupancy | None = None
+        self.trackside = Trackside(
+            sim.line, {i: (d.direction, d.preset.train.length_m) for i, d in drivers.items()}
+        )
         self._retired: set[int] = set()
 
     def __call__(self) -> None:
         sim = self.sim
-        line = sim.line
         t = sim.now_s - sim.start_s
-        reports = []
-        on_line: list[int] = []
+        seen: dict[int, TrainSeen] = {}
         for train_id, driver in self.drivers.items():
             if train_id in self._retired or t < driver.power_on_s:
                 continue
@@ -357,89 +364,9 @@ class _Trackside:
                 self._retired.add(train_id)
                 sim.retire(train_id)
                 continue
-            on_line.append(train_id)
-            self.trace[train_id].append((t, head, speed))
-            length = driver.preset.train.length_m
-            reports.append(TrainReport(train_id, head, driver.direction, length, sim.now_s))
-            self._check_tsrs(train_id, driver, head, speed, t)
-        occupancy = compute_occupancy(line, reports, sim.now_s)
-        previous = self._occupancy
-        placed = set(previous.train_ids) if previous is not None else set()
-        for train_id in on_line:
-            driver = self.drivers[train_id]
-            if previous is not None and train_id in placed:
-                self._check_signals(train_id, driver, previous, occupancy, t)
-            driver.cab_signal(*self._cab_view(occupancy, train_id, driver), t)
-        self._occupancy = occupancy
+            seen[train_id] = TrainSeen(head, speed, driver.next_stop_m())
+        for train_id, view in self.trackside.look(t, sim.now_s, seen).items():
+            self.drivers[train_id].cab_signal(view.red_signal_m, view.sight_m, t)
         if self.on_watch is not None:
             self.on_watch(sim, t)
         sim.call_at(t + WATCH_S, self)
-
-    def _cab_view(
-        self, occupancy: Any, train_id: int, driver: TrainDriver
-    ) -> tuple[float | None, float]:
-        """What the train's cab signal shows: the red signal within sight (or None), and
-        the km post of the last signal in sight (``CAB_SIGNAL_BLOCKS`` ahead) [m]."""
-        line = self.sim.line
-        sections = line.block_sections_for(driver.direction)
-        me = occupancy.train(train_id)
-        here = line.block_index(me.head_block_id, driver.direction)
-        assert here is not None  # the occupancy came from this direction's sections
-        sight = sections[min(here + CAB_SIGNAL_BLOCKS, len(sections) - 1)].entry_m
-        target = find_target(line, occupancy, train_id, horizon_m=driver.next_stop_m())
-        if target is None:
-            return None, sight
-        there = line.block_index(target.block_id, driver.direction)
-        if there is None or there - here > CAB_SIGNAL_BLOCKS:
-            return None, sight
-        return target.position_m, sight
-
-    def _check_tsrs(
-        self, train_id: int, driver: TrainDriver, head: float, speed: float, t: float
-    ) -> None:
-        if not self.tsrs or speed <= 0.0:
-            return
-        now = self.sim.now_s
-        tail = head - direction_sign(driver.direction) * driver.preset.train.length_m
-        for tsr in self.tsrs:
-            if (
-                not tsr.valid_from_s <= now < tsr.valid_until_s
-                or speed <= tsr.limit_mps + OVERSPEED_TOLERANCE_MPS
-            ):
-                continue
-            low, high = sorted((tsr.start_m, tsr.end_m))
-            where = [end for end, x in (("head", head), ("tail", tail)) if low <= x <= high]
-            if where and (train_id, tsr.session) not in self._violated:
-                self._violated.add((train_id, tsr.session))
-                self.tsr_violations.append(
-                    {
-                        "train": train_id,
-                        "session": tsr.session,
-                        "t_s": t,
-                        "at": where,
-                        "speed_kmh": round(speed * 3.6, 2),
-                        "limit_kmh": round(tsr.limit_mps * 3.6, 2),
-                    }
-                )
-
-    def _check_signals(
-        self, train_id: int, driver: TrainDriver, before: Occupancy, now: Occupancy, t: float
-    ) -> None:
-        """Every signal the head passed since the last look (the entries of the blocks it
-        went into), against the blocks' occupancy at the last look."""
-        line = self.sim.line
-        first = line.block_index(before.train(train_id).head_block_id, driver.direction)
-        last = line.block_index(now.train(train_id).head_block_id, driver.direction)
-        assert first is not None and last is not None  # both from this direction's blocks
-        for section in line.block_sections_for(driver.direction)[first + 1 : last + 1]:
-            others = [i for i in before.occupants(section.id) if i != train_id]
-            if others:
-                self.passed_at_red.append(
-                    {
-                        "train": train_id,
-                        "t_s": t,
-                        "signal_km": section.entry_m / 1000.0,
-                        "block": section.id,
-                        "held_by": others,
-                    }
-                )

@@ -41,7 +41,7 @@ import random
 from collections import Counter
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any, Protocol
+from typing import Any
 
 from railpilot.errors import ConfigError, is_finite_number
 from railpilot.ground.dispatch import (
@@ -73,27 +73,16 @@ from railpilot.link import (
     TrainDeregistered,
     TrainRecord,
     TrainRegistered,
-    TravelDirection,
     TsrApplied,
 )
 from railpilot.link.config import REPLAY_WINDOW_S
-from railpilot.net.client import Trajectory
+from railpilot.net.client import Mover, Trajectory
 from railpilot.net.server import counters_dict
 
 from .channel import ChannelModel, RadioChannel
 
 #: The dispatch core's tick [s], as on the live ground (net/dispatch_host.py TICK_S).
 TICK_S = 1.0
-
-
-class Mover(Protocol):
-    """Where a train is: ``state(t_s)`` -> ``(position_m, speed_mps)`` at ``t_s`` seconds
-    after it started, and its ``direction``."""
-
-    @property
-    def direction(self) -> TravelDirection: ...
-
-    def state(self, elapsed_s: float) -> tuple[float, float]: ...
 
 
 @dataclass

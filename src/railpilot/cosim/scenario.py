@@ -118,6 +118,9 @@ class ScenarioEvent:
     at_s: float
     action: Operation | TrainFailure | GroundRestart
     label: str
+    #: the operation's fields as the file gives them (minutes from now, km, km/h): what
+    #: the live run sends the ground's admin port at ``at_s``
+    fields: Mapping[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -257,7 +260,7 @@ def _events(
             except OperationError as error:
                 name, message = next(iter(error.errors.items()))
                 raise ScenarioError(f"{where}{name}", table.get(name, op), message) from None
-        events.append(ScenarioEvent(at_s, action, str(op)))
+        events.append(ScenarioEvent(at_s, action, str(op), fields))
     return tuple(sorted(events, key=lambda e: e.at_s))
 
 

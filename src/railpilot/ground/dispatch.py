@@ -338,6 +338,10 @@ class GroundDispatch:
             {
                 "session": session,
                 "trains": sorted({a.train_id for a in actions if isinstance(a, Deliver)}),
+                # when it holds, on the ground's clock [s since the epoch]: an operation
+                # given in minutes from now is pinned here
+                "valid_from_s": op.valid_from_s,
+                "valid_until_s": op.valid_until_s,
             },
             tuple(self._tsr_commands(actions, actor)),
         )

@@ -22,12 +22,12 @@ import contextlib
 import logging
 import random
 import socket
-import time
 from collections import Counter
 from collections.abc import Callable, Coroutine
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, Protocol
 
+from railpilot.errors import ConfigError
 from railpilot.link import (
     Deregistered,
     DeregisterReason,
@@ -59,12 +59,22 @@ from railpilot.units import mps_to_kmh
 
 from .logfmt import kv
 from .rejections import RejectionLog
-from .timers import TickScheduler
+from .timers import WALL_CLOCK, LinkClock, TickScheduler
 
 log = logging.getLogger("railpilot.net.client")
 
 #: ``listener(event, now_s)``: sees every event of the endpoint.
 OnboardListener = Callable[[Event, float], None]
+
+
+class Mover(Protocol):
+    """Where a train is: ``state(elapsed_s)`` -> ``(position_m, speed_mps)`` at
+    ``elapsed_s`` seconds after it started, and its ``direction``."""
+
+    @property
+    def direction(self) -> TravelDirection: ...
+
+    def state(self, elapsed_s: float) -> tuple[float, float]: ...
 
 
 @dataclass(frozen=True, slots=True)
@@ -125,13 +135,20 @@ class OnboardClient:
     host, port
         The ground front server (or a proxy in front of it).
     trajectory
-        Source of the running info.
+        Source of the running info: anything with a ``direction`` and ``state(elapsed_s)``
+        -> ``(position_m, speed_mps)`` (a :class:`Trajectory`, a line run's train driver).
+    trajectory_start_s
+        When the trajectory's time 0 is [s since the epoch, on ``clock``]; default: when
+        :meth:`run` is first called.
     seed
         Seed of the reconnect jitter generator.
     scheduler
         Shared timer (one for many clients in the load test); a private one by default.
     count_sent
         Count the message types this client put on the wire (load test bookkeeping).
+    clock
+        The link's time (the host's own by default, a scaled one in a live line run); a
+        ``scheduler`` given must run on it.
     """
 
     def __init__(
@@ -141,19 +158,24 @@ class OnboardClient:
         host: str,
         port: int,
         *,
-        trajectory: Trajectory | None = None,
+        trajectory: Mover | None = None,
+        trajectory_start_s: float | None = None,
         seed: int = 0,
         scheduler: TickScheduler | None = None,
         connect_timeout_s: float = 5.0,
         count_sent: bool = False,
+        clock: LinkClock = WALL_CLOCK,
     ) -> None:
+        if scheduler is not None and scheduler.clock is not clock:
+            raise ConfigError("scheduler", scheduler.clock, f"a scheduler on the client's {clock}")
+        self.clock = clock
         self.config = config
         self.endpoint = OnboardEndpoint(config, keys)
         self.host = host
         self.port = port
-        self.trajectory = trajectory or Trajectory()
+        self.trajectory: Mover = trajectory or Trajectory()
         self.rng = random.Random(seed)
-        self.scheduler = scheduler if scheduler is not None else TickScheduler()
+        self.scheduler = scheduler if scheduler is not None else TickScheduler(clock=clock)
         self.connect_timeout_s = connect_timeout_s
         self.scheduled_s: float | None = None
         self._transport: asyncio.Transport | None = None
@@ -163,7 +185,9 @@ class OnboardClient:
         self._deregistered: asyncio.Event | None = None
         self._registered = asyncio.Event()
         self._listeners: list[OnboardListener] = []
-        self._t0_s: float | None = None
+        self._t0_s = trajectory_start_s
+        #: how the onboard says goodbye when :meth:`run` is stopped while registered
+        self.leave_reason = DeregisterReason.MANUAL_SHUTDOWN
         self._tap = FrameDecoder(ABSOLUTE_MAX_FRAME_LENGTH) if count_sent else None
         #: Frames written to the socket per message type (only with ``count_sent``).
         self.sent_by_type: Counter[int] = Counter()
@@ -186,7 +210,8 @@ class OnboardClient:
         return self._transport is not None
 
     async def wait_registered(self) -> None:
-        """Wait until the train is registered (bound it with ``asyncio.timeout``)."""
+        """Wait until the train is registered on a live link (bound it with
+        ``asyncio.timeout``)."""
         await self._registered.wait()
 
     def drop_connection(self) -> None:
@@ -198,9 +223,10 @@ class OnboardClient:
         """Connect, stay connected (reconnecting with backoff) until ``stop`` or duration."""
         loop = asyncio.get_running_loop()
         if self._t0_s is None:
-            self._t0_s = time.time()
-        end_s = None if duration_s is None else time.time() + duration_s
-        timer = None if end_s is None else loop.call_later(duration_s or 0.0, stop.set)
+            self._t0_s = self.clock()
+        timer = None
+        if duration_s is not None:
+            timer = loop.call_later(self.clock.wall_s(duration_s), stop.set)
         self.scheduler.schedule(self)
         try:
             while not stop.is_set():
@@ -237,7 +263,7 @@ class OnboardClient:
         self._transport = transport
         self._rejections = RejectionLog(log)
         self.connects += 1
-        now = time.time()
+        now = self.clock()
         self.endpoint.connection_made(now)
         kv(log, logging.INFO, "connected", train=self.config.train_id, server=self._server())
         self._after(now)
@@ -248,20 +274,21 @@ class OnboardClient:
         self.reconnect_delays_s.append(delay)
         kv(log, logging.INFO, why, train=self.config.train_id, reconnect_in_s=delay)
         with contextlib.suppress(TimeoutError):
-            async with asyncio.timeout(delay):
+            async with asyncio.timeout(self.clock.wall_s(delay)):
                 await stop.wait()
 
     async def _shutdown(self) -> None:
-        """Deregister (MANUAL_SHUTDOWN), wait a bounded time for the answer, then close."""
-        now = time.time()
+        """Deregister (``leave_reason``), wait a bounded time for the answer, then close."""
+        now = self.clock()
         if self.endpoint.state in (OnboardState.REGISTERED, OnboardState.REGISTERING):
             self._deregistered = asyncio.Event()
-            self.endpoint.deregister(DeregisterReason.MANUAL_SHUTDOWN, now)
+            self.endpoint.deregister(self.leave_reason, now)
             self._after(now)
             assert self._lost is not None
             # Two resend intervals give the core one resend before we give up.
             with contextlib.suppress(TimeoutError):
-                async with asyncio.timeout(2 * self.config.timers.resend_interval_s):
+                resends = 2 * self.config.timers.resend_interval_s
+                async with asyncio.timeout(self.clock.wall_s(resends)):
                     await _first(self._deregistered.wait(), self._lost.wait())
         if self._transport is not None:
             self._transport.close()
@@ -272,12 +299,12 @@ class OnboardClient:
         kv(log, logging.INFO, "shutdown", train=self.config.train_id)
 
     def _on_data(self, data: bytes) -> None:
-        now = time.time()
+        now = self.clock()
         self.endpoint.receive_data(data, now)
         self._after(now)
 
     def _on_connection_lost(self, exc: Exception | None) -> None:
-        now = time.time()
+        now = self.clock()
         self._transport = None
         self._registered.clear()
         if self.endpoint.state is not OnboardState.DISCONNECTED:
@@ -391,6 +418,9 @@ class OnboardClient:
             kv(log, logging.WARNING, "sequence_gap", train=train, lost=event.lost)
         elif isinstance(event, LinkFailed):
             kv(log, logging.WARNING, "link_failed", train=train, reason=event.reason)
+            # no longer registered from now, not from when the socket's close comes
+            # through: a wait_registered() in between would return for a dead link
+            self._registered.clear()
             if self._transport is not None:
                 self._transport.close()
         for listener in self._listeners:

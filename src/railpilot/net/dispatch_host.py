@@ -27,8 +27,7 @@ from __future__ import annotations
 
 import asyncio
 import logging
-import time
-from collections.abc import Callable, Mapping
+from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
@@ -55,6 +54,7 @@ from railpilot.link import Event
 
 from .logfmt import kv
 from .server import GroundServer
+from .timers import LinkClock
 
 log = logging.getLogger("railpilot.net.dispatch_host")
 
@@ -67,7 +67,8 @@ BATCH = 50
 class DispatchHost:
     """The dispatch core on a live server (module docstring).
 
-    ``clock``: the ground clock [s since the epoch], the server's own by default.
+    ``clock``: the ground clock [s since the epoch], the server's own by default (its
+    ticks come every ``tick_s`` seconds of it).
     """
 
     def __init__(
@@ -75,14 +76,14 @@ class DispatchHost:
         server: GroundServer,
         line: RailLine,
         *,
-        clock: Callable[[], float] = time.time,
+        clock: LinkClock | None = None,
         tick_s: float = TICK_S,
     ) -> None:
         timers = server.config.timers
         self.server = server
         self.line = line
         self.dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
-        self._clock = clock
+        self._clock = server.clock if clock is None else clock
         self.tick_s = tick_s
         self._queued: list[Command] = []
         self._flush_scheduled = False
@@ -131,7 +132,7 @@ class DispatchHost:
 
     def _schedule_tick(self) -> None:
         loop = asyncio.get_running_loop()
-        self._ticker = loop.call_later(self.tick_s, self._on_tick)
+        self._ticker = loop.call_later(self._clock.wall_s(self.tick_s), self._on_tick)
 
     def _on_tick(self) -> None:
         # The block occupancy, a pure function of a copy of the trains' last reports, is

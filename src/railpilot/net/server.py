@@ -40,6 +40,7 @@ from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from railpilot.errors import ConfigError
 from railpilot.ground.journal import (
     EVENT_NAMES,
     Apply,
@@ -82,7 +83,7 @@ from railpilot.units import mps_to_kmh
 
 from .logfmt import kv
 from .rejections import RejectionLog
-from .timers import TickScheduler
+from .timers import WALL_CLOCK, LinkClock, TickScheduler
 
 log = logging.getLogger("railpilot.net.server")
 
@@ -158,14 +159,14 @@ class GroundConnection(asyncio.Protocol):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
         peername = transport.get_extra_info("peername")
         self.peer = f"{peername[0]}:{peername[1]}" if peername else "?"
-        now = time.time()
+        now = self.server.clock()
         self.endpoint.connection_made(now)
         self.server._connections.add(self)
         kv(log, logging.DEBUG, "connection_accepted", peer=self.peer)
         self._after(now)
 
     def data_received(self, data: bytes) -> None:
-        now = time.time()
+        now = self.server.clock()
         self.endpoint.receive_data(data, now)
         self._after(now)
 
@@ -173,7 +174,7 @@ class GroundConnection(asyncio.Protocol):
         if self._lost:
             return
         self._lost = True
-        now = time.time()
+        now = self.server.clock()
         self.endpoint.connection_lost(now)
         self.server.scheduler.cancel(self)
         self.server._on_closed(self)
@@ -239,6 +240,9 @@ class GroundServer:
     time from the event loop's thread; they act at once for a connected train and wait in
     the train's record otherwise.
 
+    ``clock`` is the link's time (epoch seconds; the host's own by default, a scaled one in
+    a live line run); a ``scheduler`` given must run on it.
+
     ``store`` (optional) keeps requests, delivery states, registrations and an audit log
     across restarts; the server only uses it (the caller opens and closes it). Without
     one, everything lives in memory and is lost when the process ends.
@@ -255,7 +259,11 @@ class GroundServer:
         backlog: int = 1024,
         replay_window_s: float = REPLAY_WINDOW_S,
         store: GroundStore | None = None,
+        clock: LinkClock = WALL_CLOCK,
     ) -> None:
+        if scheduler is not None and scheduler.clock is not clock:
+            raise ConfigError("scheduler", scheduler.clock, f"a scheduler on the server's {clock}")
+        self.clock = clock
         self.config = config
         self.store = store
         #: what the ground commits to ``store`` before anything leaves, and restores
@@ -265,7 +273,7 @@ class GroundServer:
         self.host = host
         self.port = port
         self.backlog = backlog
-        self.scheduler = scheduler if scheduler is not None else TickScheduler()
+        self.scheduler = scheduler if scheduler is not None else TickScheduler(clock=clock)
         self.records: dict[int, TrainRecord] = {}
         self.views: dict[int, TrainView] = {}
         #: Registered train id -> its current connection.
@@ -275,6 +283,8 @@ class GroundServer:
         self._listeners: list[EventListener] = []
         self._server: asyncio.Server | None = None
         self.started_at_s: float | None = None
+        #: what :meth:`start` took back from the store (GroundJournal.restore's summary)
+        self.restored: dict[str, int] = {}
 
     # --- lifecycle ----------------------------------------------------------------------------
 
@@ -285,7 +295,7 @@ class GroundServer:
         # earlier (less an allowance for the trains' clock offset and transit) are replays
         # of recordings made before a restart (protocol.md 5.2).
         if self.config.not_before_s == 0.0:
-            self.config = replace(self.config, not_before_s=time.time() - self.replay_window_s)
+            self.config = replace(self.config, not_before_s=self.clock() - self.replay_window_s)
         if self.store is not None:
             # Before listening: no train may register against records not yet restored.
             self._restore(self.store.load())
@@ -294,7 +304,7 @@ class GroundServer:
         )
         sockname = self._server.sockets[0].getsockname()
         self.port = int(sockname[1])
-        self.started_at_s = time.time()
+        self.started_at_s = self.clock()
         kv(
             log,
             logging.INFO,
@@ -356,7 +366,7 @@ class GroundServer:
         a refused one writes nothing, and a failed write changes and sends nothing.
         """
         action = request.action
-        now = time.time()
+        now = self.clock()
         if self.journal is not None:
             self.journal.commit_request(self.records.get(train_id), train_id, request, apply, now)
         conn = self.live.get(train_id)
@@ -488,7 +498,7 @@ class GroundServer:
 
     def status(self) -> dict[str, Any]:
         """JSON-ready snapshot: per train link, registration, running info and deliveries."""
-        now = time.time()
+        now = self.clock()
         trains = []
         connections = self.open_connections()
         for train_id in sorted(self.records):
@@ -554,8 +564,9 @@ class GroundServer:
         """Rebuild the train records from the store (:meth:`GroundJournal.restore`)."""
         assert self.journal is not None
         self.records, summary = self.journal.restore(
-            snapshot, self.config.not_before_s, time.time()
+            snapshot, self.config.not_before_s, self.clock()
         )
+        self.restored = summary
         kv(log, logging.INFO, "restored", store=self.journal.store.path, **summary)
 
     def _persist_step(self, conn: GroundConnection, events: list[Event], now_s: float) -> bool:

@@ -6,8 +6,9 @@ endpoint says when it next needs :meth:`~railpilot.link.Endpoint.tick`
 ``loop.call_at`` for the earliest. Ticks therefore happen when something is due (a
 heartbeat, running info, a resend, a timeout), not on a fixed grid.
 
-Core times are epoch seconds (``time.time()``, frame timestamps derive from it); asyncio
-timers run on the loop's monotonic clock. The conversion happens here and only here.
+Core times are epoch seconds (a :class:`LinkClock`: ``time.time()`` unless the run is on a
+simulated clock; frame timestamps derive from it); asyncio timers run on the loop's
+monotonic clock. The conversion happens here and only here.
 """
 
 from __future__ import annotations
@@ -17,6 +18,66 @@ import heapq
 import itertools
 import time
 from typing import Protocol
+
+from railpilot.errors import ConfigError, is_finite_number
+
+
+class LinkClock:
+    """What the link calls now [s since the epoch], and how long the event loop waits for
+    a span of it.
+
+    The default is the wall clock (``time.time()``). ``LinkClock(speedup, origin_s,
+    wall_origin_s)`` runs ``speedup`` times faster than the wall clock and reads
+    ``origin_s`` at the wall time ``wall_origin_s``: the live line run (``railpilot line
+    run --speedup 60``, cosim/live.py) puts the ground and every train on one such clock,
+    so the link's timers, its timestamps, TSR validity and the trains' physics all run on
+    the scenario's time, and a 9-hour day passes in 9 minutes. Every process computes it
+    from the same three numbers and the host's wall clock, so they agree without talking.
+    """
+
+    __slots__ = ("origin_s", "speedup", "wall_origin_s")
+
+    def __init__(
+        self,
+        speedup: float = 1.0,
+        origin_s: float | None = None,
+        wall_origin_s: float | None = None,
+    ) -> None:
+        if not is_finite_number(speedup) or not 0.0 < speedup <= 10_000.0:
+            raise ConfigError("speedup", speedup, "a time scale in (0, 10000]")
+        if (origin_s is None) != (wall_origin_s is None):
+            raise ConfigError("origin_s", origin_s, "given with wall_origin_s, or neither")
+        for name, value in (("origin_s", origin_s), ("wall_origin_s", wall_origin_s)):
+            if value is not None and (not is_finite_number(value) or value <= 0.0):
+                raise ConfigError(name, value, "a time > 0 [s since the epoch]")
+        self.speedup = float(speedup)
+        now = time.time()
+        self.wall_origin_s = now if wall_origin_s is None else float(wall_origin_s)
+        self.origin_s = self.wall_origin_s if origin_s is None else float(origin_s)
+
+    @property
+    def is_wall(self) -> bool:
+        """Is this the host's own clock (no scale, no offset)?"""
+        return self.speedup == 1.0 and self.origin_s == self.wall_origin_s
+
+    def __call__(self) -> float:
+        """Now [s since the epoch] on this clock."""
+        if self.is_wall:
+            return time.time()
+        return self.origin_s + (time.time() - self.wall_origin_s) * self.speedup
+
+    def wall_s(self, span_s: float) -> float:
+        """How long the event loop waits [s] for ``span_s`` seconds of this clock."""
+        return span_s / self.speedup
+
+    def __repr__(self) -> str:
+        if self.is_wall:
+            return "LinkClock()"
+        return f"LinkClock({self.speedup:g}, {self.origin_s:.3f}, {self.wall_origin_s:.3f})"
+
+
+#: The host's own clock: what the link uses unless told otherwise.
+WALL_CLOCK = LinkClock()
 
 
 class Tickable(Protocol):
@@ -44,7 +105,14 @@ class TickScheduler:
     know its peer) from spinning the loop.
     """
 
-    def __init__(self, *, max_interval_s: float = 0.5, min_interval_s: float = 0.01) -> None:
+    def __init__(
+        self,
+        *,
+        max_interval_s: float = 0.5,
+        min_interval_s: float = 0.01,
+        clock: LinkClock = WALL_CLOCK,
+    ) -> None:
+        self.clock = clock
         self.max_interval_s = max_interval_s
         self.min_interval_s = min_interval_s
         self._heap: list[tuple[float, int, Tickable]] = []
@@ -59,7 +127,7 @@ class TickScheduler:
         """(Re)queue ``item`` at its next deadline; call after anything touched it."""
         if self._closed:
             return
-        now = time.time() if now_s is None else now_s
+        now = self.clock() if now_s is None else now_s
         deadline = item.next_deadline_s()
         if deadline is None:
             deadline = now + self.max_interval_s
@@ -93,14 +161,15 @@ class TickScheduler:
         if self._handle is not None:
             self._handle.cancel()
         self._armed_s = deadline_s
-        self._handle = loop.call_at(loop.time() + (deadline_s - time.time()), self._fire)
+        wait = self.clock.wall_s(deadline_s - self.clock())
+        self._handle = loop.call_at(loop.time() + wait, self._fire)
 
     def _fire(self) -> None:
         self._handle = None
         self._armed_s = float("inf")
         heap = self._heap
         while heap:
-            now = time.time()
+            now = self.clock()
             deadline, _, item = heap[0]
             if deadline > now:
                 break

@@ -20,6 +20,7 @@ REPRODUCTIONS: dict[str, str] = {
     "precise-stop": "railpilot.reproduce.precise_stop",
     "retiming": "railpilot.reproduce.retiming",
     "line-day": "railpilot.reproduce.line_day",
+    "line-live": "railpilot.reproduce.line_live",
     # last: Playwright's sync API leaves an event loop marked running in this thread
     "dashboard": "railpilot.reproduce.dashboard",
 }

@@ -45,22 +45,27 @@ AT_STOP_M = 100.0
 FAILURE_BRAKING_S = 300.0
 
 
-def scenario_path() -> Path:
-    """``examples/line_short_day.toml`` of the source checkout (the examples are not
-    installed with the package): next to ``src/``, else under the working folder."""
+def find_example(name: str) -> Path:
+    """``examples/NAME`` of the source checkout (the examples are not installed with the
+    package): next to ``src/``, else under the working folder."""
     candidates = [
         Path(__file__).resolve().parents[3] / "examples",
         Path.cwd() / "examples",
     ]
     for folder in candidates:
-        if (folder / SCENARIO_FILE).is_file():
-            return folder / SCENARIO_FILE
+        if (folder / name).is_file():
+            return folder / name
     raise ConfigError(
-        f"examples/{SCENARIO_FILE}",
+        f"examples/{name}",
         ", ".join(str(folder) for folder in candidates),
         "a railpilot source checkout holding the file (examples are not installed with the "
         "package): run from the repository",
     )
+
+
+def scenario_path() -> Path:
+    """``examples/line_short_day.toml`` of the source checkout."""
+    return find_example(SCENARIO_FILE)
 
 
 @dataclass

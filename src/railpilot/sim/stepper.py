@@ -105,6 +105,13 @@ class Stepper:
         self._state.c[C_MOVING] = 1.0
         self._state.c[C_HAS_MOVED] = 0.0
 
+    def hold(self) -> None:
+        """Hold a train at rest where it stands (nothing ahead of it may be entered): it
+        does not move until :meth:`restart`, whatever its reference says."""
+        if self.speed_mps > 0.0:
+            raise ConfigError("speed_mps", self.speed_mps, "a train at rest (0 m/s) to hold")
+        self._state.c[C_MOVING] = 0.0
+
     def advance_to(self, time_s: float) -> None:
         """Run the steps that start before ``time_s`` [s] (or to the end of the run)."""
         if not math.isfinite(time_s):

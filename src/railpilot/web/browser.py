@@ -7,6 +7,7 @@ One place for the tests (tests/web/conftest.py) and the report's screenshot
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 #: Debian's chromium (``apt-get install chromium``; .ci/run installs it).
 CHROMIUM = Path("/usr/bin/chromium")
@@ -21,3 +22,39 @@ CHROMIUM_FLAGS: tuple[str, ...] = (
     "--disable-component-update",
     "--disable-sync",
 )
+
+
+def missing_browser() -> str | None:
+    """Why no screenshot can be taken here (None: chromium and Playwright are there)."""
+    if not CHROMIUM.exists():
+        return f"Debian's chromium is not installed at {CHROMIUM} (apt-get install chromium)"
+    try:
+        import playwright.sync_api  # noqa: F401
+    except ModuleNotFoundError:
+        return "Playwright for Python is not installed (pip install pytest-playwright)"
+    return None
+
+
+def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0) -> dict[str, Any]:
+    """A full-page screenshot of the dashboard at ``url`` into ``path`` once it shows
+    ``trains`` trains (a live line run's, cosim/live.py); what it showed, or why none was
+    taken (``skipped``)."""
+    missing = missing_browser()
+    if missing is not None:
+        return {"screenshot": None, "skipped": missing}
+    from playwright.sync_api import expect, sync_playwright
+
+    with sync_playwright() as playwright:
+        browser = playwright.chromium.launch(
+            executable_path=str(CHROMIUM), args=list(CHROMIUM_FLAGS)
+        )
+        try:
+            page = browser.new_page(viewport={"width": 1600, "height": 1000})
+            page.goto(url)
+            rows = page.locator("#trains tbody tr[data-train]")
+            expect(rows).to_have_count(trains, timeout=wait_s * 1000)
+            page.screenshot(path=str(path), full_page=True)
+            shown = rows.count()
+        finally:
+            browser.close()
+    return {"screenshot": str(path), "trains_shown": shown}

@@ -28,7 +28,6 @@ import contextlib
 import logging
 import math
 import socket
-import time
 from collections import deque
 from collections.abc import Callable, Generator, Mapping
 from typing import Any
@@ -72,15 +71,15 @@ class ServerSource:
         shows what its core decided and the server's delivery books; the form's requests
         go through it, as the admin port's do.
     clock
-        The ground clock [s since the epoch] (the server's own is ``time.time``).
+        The ground clock [s since the epoch]; the server's own by default.
     """
 
-    def __init__(self, host: DispatchHost, *, clock: Callable[[], float] = time.time) -> None:
+    def __init__(self, host: DispatchHost, *, clock: Callable[[], float] | None = None) -> None:
         self.host = host
         self.server = host.server
         self.dispatch = host.dispatch
         self.line = line = host.line
-        self._clock = clock
+        self._clock = host.server.clock if clock is None else clock
         # The train's category is not in its registration: loaded trains (the line's
         # first category) are taken to run UP and empty ones (its last) DOWN, as the fake.
         self._category = {UP: line.categories[0], DOWN: line.categories[-1]}

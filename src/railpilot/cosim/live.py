@@ -1,0 +1,499 @@
+"""A line run live: the ground as a server and every train as its own process, over real
+TCP on loopback, on a clock ``speedup`` times faster than the wall's (issue 12 item 2;
+docs/line-run.md "Live").
+
+:func:`run_live` plays a line-run scenario as the co-simulation (cosim/line_run.py) does,
+with real parts where the co-simulation has simulated ones:
+
+* **the ground** is a process (cosim/live_ground.py) running what ``railpilot ground
+  serve`` runs: the link's front server with its SQLite store, the dispatch application,
+  the admin port and the dashboard;
+* **each train** is a process (cosim/live_train.py): the same driver and simulation core
+  as the co-simulation, and the onboard unit of ``railpilot onboard run``
+  (:class:`~railpilot.net.client.OnboardClient`) connected to the ground over TCP;
+* **the clock** is one :class:`~railpilot.net.timers.LinkClock` that every process
+  computes from the same origin: the scenario's epoch at a wall time this run chooses
+  once every process has said it is ready. The link's timers, its frame timestamps, TSR
+  validity and the trains' physics all run on it;
+* **the dispatcher** is this run, speaking to the ground's admin port (the scenario's
+  operations, as typed in its file) at their times;
+* **a ground restart** kills the ground process with SIGKILL and starts a new one on the
+  same ports and store after the down time;
+* **the trackside** (cosim/trackside.py, the KPIs' truth) is in this process: each train
+  tells it over the control wire (cosim/live_wire.py) where it truly is each whole
+  second, and it answers with the train's cab signal.
+
+What differs from the co-simulation: the radio is loopback TCP (no loss, no dead zones, no
+outages: the scenario's ``[channel]`` is not applied; docs/line-run.md), and the link's
+latencies are the host's, scaled by ``speedup``. The KPIs are computed by the same code
+from the same kind of record, so the two runs of a scenario can be compared
+(tests/cosim/test_live.py states the tolerance).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import multiprocessing
+import secrets
+import tempfile
+import time
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from railpilot.errors import ConfigError, RailpilotError, is_finite_number
+from railpilot.ground.operations import CancelTsr, SetTsr
+from railpilot.ground.store import open_store
+from railpilot.net.admin import AdminError, admin_request
+from railpilot.net.timers import LinkClock
+
+from . import live_ground, live_train
+from .driver import SectionRun, Service
+from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult
+from .live_wire import MAX_LINE, receive, send
+from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
+from .trackside import Trackside, TrainSeen, TsrWatch
+
+#: the default time scale (a 9-hour day in 9 minutes)
+DEFAULT_SPEEDUP = 60.0
+#: the highest time scale allowed: at 200x the link's 1 s cycle is 5 ms of wall clock,
+#: near what an event loop on a busy host can keep
+MAX_SPEEDUP = 200.0
+#: how long the processes may take to start and say they are ready [s of wall clock]
+#: (imports and the simulation core's compilation: a few seconds each, on 2 cores)
+READY_TIMEOUT_S = 300.0
+#: how long the ground may take to come up, and the processes to report at the end [s]
+ANSWER_TIMEOUT_S = 60.0
+#: the clock starts this long after every process is ready [s of wall clock]
+START_LEAD_S = 0.2
+#: the trackside looks this long after the whole second the trains report [s]: their
+#: reports are in by then
+LOOK_AFTER_S = 0.5
+
+
+class LiveRunError(RailpilotError):
+    """A live run that could not go on (a process that did not start or answer)."""
+
+
+@dataclass
+class TrainRun:
+    """A live train as the KPIs read it (``DrivenTrain``): its report at the end."""
+
+    service: Service
+    sections: list[SectionRun]
+    finished: bool
+    red_signal_stops: int
+
+
+@dataclass
+class LiveOptions:
+    """How to run live (``railpilot line run``): the time scale, the seed (the scenario's
+    by default), where to stop [s], the dashboard's port (0: a free one) and token, the
+    ground's store file (default: a new one in a temporary directory), and a screenshot
+    of the dashboard taken at ``screenshot_at_s`` into ``screenshot``."""
+
+    speedup: float = DEFAULT_SPEEDUP
+    seed: int | None = None
+    until_s: float | None = None
+    http_port: int = 0
+    token: str | None = None
+    store_path: str | None = None
+    screenshot: Path | None = None
+    screenshot_at_s: float | None = None
+    #: told the dashboard's address and token once the ground is up
+    on_dashboard: Callable[[str, str], None] | None = None
+
+    def check(self, scenario: LineScenario) -> None:
+        if not is_finite_number(self.speedup) or not 1.0 <= self.speedup <= MAX_SPEEDUP:
+            raise ConfigError("speedup", self.speedup, f"a time scale in [1, {MAX_SPEEDUP:g}]")
+        if self.until_s is not None and (
+            not is_finite_number(self.until_s) or not self.until_s > 0.0
+        ):
+            raise ConfigError("until_s", self.until_s, "a time > 0 [s]")
+        if not isinstance(self.http_port, int) or not 0 <= self.http_port <= 65535:
+            raise ConfigError("http_port", self.http_port, "0..65535 (0: a free one)")
+        if self.screenshot_at_s is not None and not (
+            is_finite_number(self.screenshot_at_s)
+            and 0.0 < self.screenshot_at_s < scenario.duration_s
+        ):
+            raise ConfigError(
+                "screenshot_at_s", self.screenshot_at_s, "a time within the scenario [s]"
+            )
+
+
+def run_live(path: str | Path, options: LiveOptions | None = None) -> LineResult:
+    """Run the line-run file ``path`` live (module docstring) and return what the
+    co-simulation returns for it (its ``kpis()``)."""
+    options = options or LiveOptions()
+    scenario = load_scenario(path)
+    options.check(scenario)
+    with tempfile.TemporaryDirectory(prefix="railpilot-live-") as scratch:
+        store = options.store_path or str(Path(scratch) / "ground.db")
+        run = _LiveRun(scenario, str(path), options, store)
+        return asyncio.run(run.main())
+
+
+class _LiveRun:
+    def __init__(
+        self, scenario: LineScenario, path: str, options: LiveOptions, store_path: str
+    ) -> None:
+        self.scenario = scenario
+        self.path = path
+        self.options = options
+        self.seed = scenario.seed if options.seed is None else options.seed
+        self.store_path = store_path
+        self.token = options.token or secrets.token_urlsafe(16)
+        end = scenario.duration_s
+        self.end_s = end if options.until_s is None else min(options.until_s, end)
+        self.services = {s.train_id: s for s in scenario.services}
+        self.context = multiprocessing.get_context("spawn")
+        self.trackside = Trackside(
+            scenario.line,
+            {i: (s.direction, _train_length_m(s)) for i, s in self.services.items()},
+        )
+        self.clock: LinkClock | None = None
+        self.ground: Any = None  # the ground's process
+        self.ground_up = False
+        self.ports: dict[str, int] = {"link_port": 0, "http_port": options.http_port}
+        self.ports["admin_port"] = 0
+        self.trains: dict[int, Any] = {}  # train id -> its process
+        self.writers: dict[int | str, asyncio.StreamWriter] = {}
+        self.hello: dict[int | str, asyncio.Future[None]] = {}
+        self.ground_messages: asyncio.Queue[dict[str, Any]] = asyncio.Queue()
+        self.seen: dict[int, dict[str, Any]] = {}
+        self.results: dict[int, dict[str, Any]] = {}
+        self.reported: dict[int, asyncio.Future[None]] = {}
+        self.events: list[dict[str, Any]] = []
+        self.restarts: list[dict[str, Any]] = []
+        self.screenshot: dict[str, Any] | None = None
+
+    # ------------------------------------------------------------------ the run
+
+    async def main(self) -> LineResult:
+        loop = asyncio.get_running_loop()
+        self.hello = {"ground": loop.create_future()}
+        self.hello |= {i: loop.create_future() for i in self.services}
+        self.reported = {i: loop.create_future() for i in self.services}
+        control = await asyncio.start_server(self._accept, "127.0.0.1", 0, limit=MAX_LINE)
+        self.control_port = int(control.sockets[0].getsockname()[1])
+        try:
+            self._start_ground(None)
+            for train_id in self.services:
+                args = live_train.TrainArgs(self.control_port, self.path, self.seed, train_id)
+                process = self.context.Process(
+                    target=live_train.run, args=(args,), name=f"train {train_id}", daemon=True
+                )
+                process.start()
+                self.trains[train_id] = process
+            await self._ready(list(self.hello), READY_TIMEOUT_S)
+            clock = self.clock = LinkClock(
+                self.options.speedup, self.scenario.epoch_s, time.time() + START_LEAD_S
+            )
+            await self._send("ground", self._start_message())
+            up = await self._ground_up(ANSWER_TIMEOUT_S)
+            self.ports = {k: up[k] for k in ("link_port", "http_port", "admin_port")}
+            url = f"http://127.0.0.1:{self.ports['http_port']}/"
+            if self.options.on_dashboard is not None:
+                self.options.on_dashboard(url, self.token)
+            for train_id in self.services:
+                await self._send(train_id, self._start_message())
+            wall_started = time.perf_counter()
+            tasks = [asyncio.create_task(self._event(e)) for e in self.scenario.events]
+            tasks.append(asyncio.create_task(self._watch()))
+            if self.options.screenshot is not None and self.options.screenshot_at_s is not None:
+                tasks.append(asyncio.create_task(self._screenshot(url)))
+            await self._sleep_until(self.end_s)
+            wall = time.perf_counter() - wall_started
+            for task in tasks:
+                task.cancel()
+            await asyncio.gather(*tasks, return_exceptions=True)
+            for train_id in self.services:
+                await self._send(train_id, {"op": "stop"})
+            await self._ready(list(self.reported), ANSWER_TIMEOUT_S, self.reported)
+            ground_counters = await self._stop_ground()
+        finally:
+            control.close()
+            self._end_processes()
+        return self._result(clock, wall, ground_counters)
+
+    def _start_message(self) -> dict[str, Any]:
+        assert self.clock is not None
+        return {
+            "op": "start",
+            "speedup": self.clock.speedup,
+            "wall_origin_s": self.clock.wall_origin_s,
+            "link_port": self.ports["link_port"],
+        }
+
+    def _start_ground(self, start_at_s: float | None) -> None:
+        args = live_ground.GroundArgs(
+            self.control_port,
+            self.path,
+            self.seed,
+            self.store_path,
+            self.token,
+            start_at_s=start_at_s,
+            **self.ports,
+        )
+        self.ground = self.context.Process(
+            target=live_ground.run, args=(args,), name="ground", daemon=True
+        )
+        self.ground.start()
+
+    async def _ready(
+        self,
+        names: list[int | str],
+        timeout_s: float,
+        futures: Mapping[Any, asyncio.Future[None]] | None = None,
+    ) -> None:
+        """Wait for every process in ``names`` to say hello (or to report); a process that
+        has died, or the timeout, stops the run with its name and exit code."""
+        futures = self.hello if futures is None else futures
+        deadline = time.monotonic() + timeout_s
+        while not all(futures[n].done() for n in names):
+            for name in names:
+                process = self.ground if name == "ground" else self.trains[int(name)]
+                if not futures[name].done() and process.exitcode is not None:
+                    raise LiveRunError(f"the {process.name} process ended ({process.exitcode})")
+            if time.monotonic() > deadline:
+                late = [str(n) for n in names if not futures[n].done()]
+                raise LiveRunError(f"no answer within {timeout_s:g} s from: {', '.join(late)}")
+            await asyncio.wait([futures[n] for n in names if not futures[n].done()], timeout=0.1)
+
+    async def _ground_up(self, timeout_s: float) -> dict[str, Any]:
+        try:
+            async with asyncio.timeout(timeout_s):
+                while (message := await self.ground_messages.get())["op"] != "up":
+                    pass
+        except TimeoutError:
+            raise LiveRunError(f"the ground did not come up within {timeout_s:g} s") from None
+        self.ground_up = True
+        return message
+
+    async def _stop_ground(self) -> dict[str, Any]:
+        await self._send("ground", {"op": "stop"})
+        try:
+            async with asyncio.timeout(ANSWER_TIMEOUT_S):
+                while (message := await self.ground_messages.get())["op"] != "counters":
+                    pass
+        except TimeoutError:
+            raise LiveRunError("the ground did not report its counters") from None
+        counters: dict[str, Any] = message["counters"]
+        await asyncio.to_thread(self.ground.join, ANSWER_TIMEOUT_S)
+        return counters
+
+    def _end_processes(self) -> None:
+        for process in [self.ground, *self.trains.values()]:
+            if process is None or process.pid is None:
+                continue  # never started
+            process.join(timeout=5.0)
+            if process.is_alive():
+                process.kill()
+                process.join()
+
+    # ------------------------------------------------------------------ the wire
+
+    async def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        hello = await receive(reader)
+        if hello is None or hello.get("op") != "hello":
+            writer.close()
+            return
+        name: int | str = "ground" if hello["role"] == "ground" else int(hello["train"])
+        self.writers[name] = writer
+        if not self.hello[name].done():
+            self.hello[name].set_result(None)
+        elif name == "ground":
+            # a restarted ground: it starts (on the same clock) when its down time is over
+            await self._send("ground", self._start_message())
+        while (message := await receive(reader)) is not None:
+            if name == "ground":
+                self.ground_messages.put_nowait(message)
+            elif message["op"] == "seen":
+                self.seen[int(name)] = message
+            elif message["op"] == "result":
+                self.results[int(name)] = message
+                if not self.reported[int(name)].done():
+                    self.reported[int(name)].set_result(None)
+
+    async def _send(self, name: int | str, message: dict[str, Any]) -> None:
+        writer = self.writers.get(name)
+        if writer is None or writer.is_closing():
+            return
+        with contextlib.suppress(ConnectionError):
+            await send(writer, message)
+
+    # ------------------------------------------------------------------ time
+
+    def _now_t(self) -> float:
+        assert self.clock is not None
+        return self.clock() - self.scenario.epoch_s
+
+    async def _sleep_until(self, t: float) -> None:
+        assert self.clock is not None
+        await asyncio.sleep(max(self.clock.wall_s(t - self._now_t()), 0.0))
+
+    # ------------------------------------------------------------------ the trackside
+
+    async def _watch(self) -> None:
+        """Once a second: the trains' last reports to the trackside, the cab views back."""
+        t = WATCH_S
+        while True:
+            await self._sleep_until(t + LOOK_AFTER_S)
+            seen = {
+                i: TrainSeen(m["head_m"], m["speed_mps"], m["next_stop_m"])
+                for i, m in self.seen.items()
+                if not m["finished"]
+            }
+            views = self.trackside.look(t, self.scenario.epoch_s + t, seen)
+            for train_id, view in views.items():
+                await self._send(
+                    train_id, {"op": "cab", "red_m": view.red_signal_m, "sight_m": view.sight_m}
+                )
+            t += WATCH_S
+
+    # ------------------------------------------------------------------ the scenario
+
+    async def _event(self, event: ScenarioEvent) -> None:
+        await self._sleep_until(event.at_s)
+        action = event.action
+        entry: dict[str, Any] = {"t_s": self._now_t(), "event": event.label}
+        if isinstance(action, TrainFailure):
+            await self._send(action.train_id, {"op": "fail", "stand_s": action.stand_s})
+            entry["train"] = action.train_id
+        elif isinstance(action, GroundRestart):
+            await self._restart_ground(action.down_s)
+            entry["down_s"] = action.down_s
+        else:
+            entry["result"] = await self._operate(event)
+        self.events.append(entry)
+
+    async def _restart_ground(self, down_s: float) -> None:
+        """Kill the ground (SIGKILL) and start a new process that opens the same store on
+        the same ports ``down_s`` later."""
+        down_at = self._now_t()
+        self.ground_up = False
+        self.ground.kill()
+        await asyncio.to_thread(self.ground.join)
+        self.writers.pop("ground", None)
+        self.restarts.append({"down_at_s": down_at})
+        self._start_ground(down_at + down_s)
+        up = await self._ground_up(ANSWER_TIMEOUT_S + self.scenario.duration_s)
+        self.restarts[-1] |= {"up_at_s": up["at_s"], "restored": up["restored"]}
+
+    async def _operate(self, event: ScenarioEvent) -> dict[str, Any]:
+        """The dispatcher's operation through the ground's admin port; while the ground is
+        down it is tried again ``RETRY_WHILE_DOWN_S`` later."""
+        request = {"op": event.label, **event.fields, "actor": "scenario"}
+        while True:
+            if self.ground_up:
+                try:
+                    response = await admin_request(request, port=self.ports["admin_port"])
+                    break
+                except (OSError, TimeoutError, AdminError):
+                    pass  # killed under the request: asked again when it is back
+            await self._sleep_until(self._now_t() + RETRY_WHILE_DOWN_S)
+        if not response.get("ok"):
+            raise LiveRunError(f"the ground refused {event.label} at {event.at_s:g} s: {response}")
+        result: dict[str, Any] = response["result"]
+        action = event.action
+        if isinstance(action, SetTsr):
+            self.trackside.tsrs.append(
+                TsrWatch(
+                    action.start_m,
+                    action.end_m,
+                    action.limit_mps,
+                    result["valid_from_s"],
+                    result["valid_until_s"],
+                    int(result["session"]),
+                )
+            )
+        elif isinstance(action, CancelTsr):
+            assert self.clock is not None
+            self.trackside.lift_tsr(action.session, self.clock())
+        return result
+
+    async def _screenshot(self, url: str) -> None:
+        assert self.options.screenshot is not None and self.options.screenshot_at_s is not None
+        await self._sleep_until(self.options.screenshot_at_s)
+        from railpilot.web.browser import dashboard_screenshot
+
+        trains = len([m for m in self.seen.values() if not m["finished"]])
+        self.screenshot = await asyncio.to_thread(
+            dashboard_screenshot, url, self.options.screenshot, trains
+        )
+        self.screenshot["t_s"] = self.options.screenshot_at_s
+
+    # ------------------------------------------------------------------ what it gives
+
+    def _result(
+        self, clock: LinkClock, wall_s: float, ground_counters: dict[str, Any]
+    ) -> LineResult:
+        drivers = {
+            i: TrainRun(
+                self.services[i],
+                [SectionRun(**s) for s in r["sections"]],
+                bool(r["finished"]),
+                int(r["red_signal_stops"]),
+            )
+            for i, r in sorted(self.results.items())
+        }
+        results = self.results.values()
+        link = {
+            "ground": ground_counters,
+            "onboard": _sum_counts([r["onboard"] for r in results]),
+            "connects": sum(r["connects"] for r in results),
+            "link_failures": sum(r["link_failures"] for r in results),
+        }
+        store = open_store(self.store_path)
+        try:
+            audit_log, snapshot = store.audit_log(), store.load()
+        finally:
+            store.close()
+        result = LineResult(
+            self.scenario,
+            self.seed,
+            True,
+            drivers,
+            {
+                i: np.asarray(rows, dtype=float).reshape(-1, 3)
+                for i, rows in self.trackside.trace.items()
+            },
+            self.trackside.tsr_violations,
+            self.trackside.passed_at_red,
+            link,
+            {i: {int(k): v for k, v in r["tsr_applied"].items()} for i, r in self.results.items()},
+            wall_s,
+            sorted(self.events, key=lambda e: e["t_s"]),
+            self.restarts,
+            audit_log,
+            snapshot,
+            {i: list(r["active_tsrs"]) for i, r in self.results.items()},
+            self.end_s,
+            live={"speedup": clock.speedup, "screenshot": self.screenshot},
+        )
+        return result
+
+
+def _train_length_m(service: Service) -> float:
+    from railpilot.onboard.drive import train_preset
+
+    return float(train_preset(service.kind).train.length_m)
+
+
+def _sum_counts(dicts: list[dict[str, Any]]) -> dict[str, Any]:
+    """Counter dicts summed key by key (nested ones too: ``rejected`` per check)."""
+    total: dict[str, Any] = {}
+    for d in dicts:
+        for key, value in d.items():
+            if isinstance(value, dict):
+                total[key] = _sum_counts([total.get(key, {}), value])
+            else:
+                total[key] = total.get(key, 0) + value
+    return total
+
+
+__all__ = ["DEFAULT_SPEEDUP", "LiveOptions", "LiveRunError", "TrainRun", "run_live"]

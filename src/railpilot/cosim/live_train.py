@@ -1,0 +1,170 @@
+"""A train process of a live line run (cosim/live.py; docs/line-run.md "Live").
+
+One train: its onboard driving system and simulation core (the co-simulation's
+:class:`~railpilot.cosim.driver.TrainDriver`, unchanged) and its onboard unit on the real
+link (:class:`~railpilot.net.client.OnboardClient` over TCP to the ground's server), all on
+the run's clock. Over the control wire (cosim/live_wire.py) it tells the trackside where
+it truly is each whole second, and hears back its cab signal, a failure, the end.
+
+The simulation core compiles (numba) when it first runs; that is done before the process
+says it is ready, so the run's clock never waits for it.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import contextlib
+import dataclasses
+import logging
+import math
+from collections import Counter
+from dataclasses import dataclass
+from typing import Any
+
+from railpilot.link import DeregisterReason, Event, OnboardState, TsrApplied
+from railpilot.net.client import OnboardClient
+from railpilot.net.server import counters_dict
+from railpilot.net.timers import LinkClock
+
+from .line_run import WATCH_S, line_keys, line_train
+from .live_wire import connect, receive, send
+from .scenario import load_scenario
+
+#: how much of its first section a train process drives before it says it is ready [s]:
+#: enough to compile the simulation core and fill the route caches
+WARM_UP_S = 120.0
+
+
+@dataclass(frozen=True)
+class TrainArgs:
+    """What the run tells a train process when it starts it."""
+
+    control_port: int
+    scenario_path: str
+    seed: int
+    train_id: int
+
+
+def run(args: TrainArgs) -> None:
+    """The process's entry point (multiprocessing, spawn)."""
+    logging.basicConfig(level=logging.WARNING)
+    asyncio.run(_main(args))
+
+
+async def _main(args: TrainArgs) -> None:
+    scenario = load_scenario(args.scenario_path)
+    service = next(s for s in scenario.services if s.train_id == args.train_id)
+    warm, _ = line_train(scenario, service, True)
+    warm.at(service.stops[0].departure_s + WARM_UP_S)
+    driver, config = line_train(scenario, service, True)
+    epoch = scenario.epoch_s
+    reader, writer = await connect(args.control_port)
+    await send(writer, {"op": "hello", "role": "train", "train": args.train_id})
+    start = await receive(reader)
+    if start is None:
+        return
+    clock = LinkClock(start["speedup"], epoch, start["wall_origin_s"])
+    applied: Counter[int] = Counter()
+
+    def on_event(event: Event, now_s: float) -> None:
+        if isinstance(event, TsrApplied):
+            applied[event.tsr.session] += 1
+        driver.on_event(event, now_s)
+
+    client = OnboardClient(
+        config,
+        line_keys(scenario, args.seed),
+        "127.0.0.1",
+        start["link_port"],
+        trajectory=driver,
+        trajectory_start_s=epoch + driver.power_on_s,
+        seed=args.seed * 100_003 + args.train_id,
+        clock=clock,
+    )
+    client.add_listener(on_event)
+    client.leave_reason = DeregisterReason.LEAVING_MAIN_LINE
+    stop = asyncio.Event()
+    ended = asyncio.Event()  # the run is over
+
+    def now_t() -> float:
+        return clock() - epoch
+
+    async def sleep_until(t: float) -> None:
+        await asyncio.sleep(max(clock.wall_s(t - now_t()), 0.0))
+
+    def recover() -> None:
+        driver.recover(now_t())
+
+    async def listen() -> None:
+        while (message := await receive(reader)) is not None:
+            op = message["op"]
+            if op == "cab":
+                driver.cab_signal(message["red_m"], message["sight_m"], now_t())
+            elif op == "fail":
+                driver.fail(now_t())
+                loop = asyncio.get_running_loop()
+                loop.call_later(clock.wall_s(message["stand_s"]), recover)
+            elif op == "stop":
+                break
+        ended.set()
+
+    listener = asyncio.create_task(listen())
+    await _first(sleep_until(driver.power_on_s), ended.wait())
+    link = asyncio.create_task(client.run(stop))
+    t = math.ceil(now_t() / WATCH_S) * WATCH_S
+    while not ended.is_set():
+        await _first(sleep_until(t), ended.wait())
+        if ended.is_set():
+            break
+        head, speed = driver.at(t)
+        await send(
+            writer,
+            {
+                "op": "seen",
+                "t": t,
+                "head_m": head,
+                "speed_mps": speed,
+                "next_stop_m": driver.next_stop_m(),
+                "finished": driver.finished,
+            },
+        )
+        if driver.finished:
+            # it leaves the line: it says so to the ground (once its link is up) and goes
+            while client.state is not OnboardState.REGISTERED and not ended.is_set():
+                pause = asyncio.sleep(clock.wall_s(WATCH_S))
+                await _first(client.wait_registered(), ended.wait(), pause)
+            break
+        t += WATCH_S
+    stop.set()
+    await link
+    await send(
+        writer,
+        {
+            "op": "result",
+            "train": args.train_id,
+            "sections": [dataclasses.asdict(s) for s in driver.sections],
+            "finished": driver.finished,
+            "red_signal_stops": driver.red_signal_stops,
+            "tsr_applied": {str(k): v for k, v in applied.items()},
+            "onboard": counters_dict([client.endpoint.counters]),
+            "connects": client.connects,
+            "registrations": client.registrations,
+            "link_failures": client.events_seen["LinkFailed"],
+            "active_tsrs": sorted(client.endpoint.active_tsrs),
+        },
+    )
+    await ended.wait()
+    listener.cancel()
+    with contextlib.suppress(asyncio.CancelledError):
+        await listener
+    writer.close()
+
+
+async def _first(*aws: Any) -> None:
+    """Wait for the first of ``aws`` to finish; cancel the rest."""
+    tasks = [asyncio.ensure_future(a) for a in aws]
+    try:
+        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
+    finally:
+        for task in tasks:
+            task.cancel()
