@@ -88,6 +88,10 @@ def test_tsr_set_and_cancel_through_the_admin_api_reach_the_train() -> None:
                 "reason": "track work",
             }
             answer = await admin_request(request, port=port)
+            # the ground pins "10 minutes from now" on its own clock and says when
+            result = answer["result"]
+            valid_from, valid_until = result.pop("valid_from_s"), result.pop("valid_until_s")
+            assert valid_until - valid_from == pytest.approx(10 * 60.0)
             assert answer == {
                 "ok": True,
                 "result": {

@@ -260,10 +260,7 @@ def run_line(
         seed,
         advised,
         drivers,
-        {
-            i: np.asarray(rows, dtype=float).reshape(-1, 3)
-            for i, rows in watch.trackside.trace.items()
-        },
+        watch.trackside.traces(),
         watch.trackside.tsr_violations,
         watch.trackside.passed_at_red,
         sim.link_report(),

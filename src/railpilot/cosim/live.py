@@ -43,8 +43,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-import numpy as np
-
 from railpilot.errors import ConfigError, RailpilotError, is_finite_number
 from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.store import open_store
@@ -381,7 +379,8 @@ class _LiveRun:
         self.writers.pop("ground", None)
         self.restarts.append({"down_at_s": down_at})
         self._start_ground(down_at + down_s)
-        up = await self._ground_up(ANSWER_TIMEOUT_S + self.scenario.duration_s)
+        assert self.clock is not None
+        up = await self._ground_up(ANSWER_TIMEOUT_S + self.clock.wall_s(down_s))
         self.restarts[-1] |= {"up_at_s": up["at_s"], "restored": up["restored"]}
 
     async def _operate(self, event: ScenarioEvent) -> dict[str, Any]:
@@ -458,10 +457,7 @@ class _LiveRun:
             self.seed,
             True,
             drivers,
-            {
-                i: np.asarray(rows, dtype=float).reshape(-1, 3)
-                for i, rows in self.trackside.trace.items()
-            },
+            self.trackside.traces(),
             self.trackside.tsr_violations,
             self.trackside.passed_at_red,
             link,

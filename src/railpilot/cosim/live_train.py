@@ -19,10 +19,9 @@ import logging
 import math
 from collections import Counter
 from dataclasses import dataclass
-from typing import Any
 
 from railpilot.link import DeregisterReason, Event, OnboardState, TsrApplied
-from railpilot.net.client import OnboardClient
+from railpilot.net.client import OnboardClient, first_of
 from railpilot.net.server import counters_dict
 from railpilot.net.timers import LinkClock
 
@@ -109,11 +108,11 @@ async def _main(args: TrainArgs) -> None:
         ended.set()
 
     listener = asyncio.create_task(listen())
-    await _first(sleep_until(driver.power_on_s), ended.wait())
+    await first_of(sleep_until(driver.power_on_s), ended.wait())
     link = asyncio.create_task(client.run(stop))
     t = math.ceil(now_t() / WATCH_S) * WATCH_S
     while not ended.is_set():
-        await _first(sleep_until(t), ended.wait())
+        await first_of(sleep_until(t), ended.wait())
         if ended.is_set():
             break
         head, speed = driver.at(t)
@@ -132,7 +131,7 @@ async def _main(args: TrainArgs) -> None:
             # it leaves the line: it says so to the ground (once its link is up) and goes
             while client.state is not OnboardState.REGISTERED and not ended.is_set():
                 pause = asyncio.sleep(clock.wall_s(WATCH_S))
-                await _first(client.wait_registered(), ended.wait(), pause)
+                await first_of(client.wait_registered(), ended.wait(), pause)
             break
         t += WATCH_S
     stop.set()
@@ -158,13 +157,3 @@ async def _main(args: TrainArgs) -> None:
     with contextlib.suppress(asyncio.CancelledError):
         await listener
     writer.close()
-
-
-async def _first(*aws: Any) -> None:
-    """Wait for the first of ``aws`` to finish; cancel the rest."""
-    tasks = [asyncio.ensure_future(a) for a in aws]
-    try:
-        await asyncio.wait(tasks, return_when=asyncio.FIRST_COMPLETED)
-    finally:
-        for task in tasks:
-            task.cancel()

@@ -14,6 +14,8 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from railpilot.ground.occupancy import (
     Occupancy,
     TrainReport,
@@ -78,6 +80,10 @@ class Trackside:
         self._violated: set[tuple[int, int]] = set()
         self.passed_at_red: list[dict[str, Any]] = []
         self._occupancy: Occupancy | None = None
+
+    def traces(self) -> dict[int, np.ndarray]:
+        """Each train's rows (t [s], head km post [m], speed [m/s]) as an array."""
+        return {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in self.trace.items()}
 
     def lift_tsr(self, session: int, now_s: float) -> None:
         """The dispatcher cancelled TSR ``session`` at ``now_s`` [epoch s]: it is lifted

@@ -234,7 +234,7 @@ class OnboardClient:
                     await self._pause(stop, "connect_failed")
                     continue
                 assert self._lost is not None
-                await _first(stop.wait(), self._lost.wait())
+                await first_of(stop.wait(), self._lost.wait())
                 if self._lost.is_set():
                     await self._pause(stop, "connection_lost")
                 else:
@@ -289,7 +289,7 @@ class OnboardClient:
             with contextlib.suppress(TimeoutError):
                 resends = 2 * self.config.timers.resend_interval_s
                 async with asyncio.timeout(self.clock.wall_s(resends)):
-                    await _first(self._deregistered.wait(), self._lost.wait())
+                    await first_of(self._deregistered.wait(), self._lost.wait())
         if self._transport is not None:
             self._transport.close()
         if self._lost is not None:
@@ -435,7 +435,7 @@ def _snake(name: str) -> str:
     return "".join("_" + c.lower() if c.isupper() else c for c in name).lstrip("_")
 
 
-async def _first(*aws: Coroutine[Any, Any, Any]) -> None:
+async def first_of(*aws: Coroutine[Any, Any, Any]) -> None:
     """Wait until the first of several coroutines finishes; cancel the rest."""
     tasks = [asyncio.ensure_future(a) for a in aws]
     try:
