@@ -208,7 +208,9 @@ class _LiveRun:
             wall = time.perf_counter() - wall_started
             for task in tasks:
                 task.cancel()
-            await asyncio.gather(*tasks, return_exceptions=True)
+            for outcome in await asyncio.gather(*tasks, return_exceptions=True):
+                if isinstance(outcome, Exception):  # an event that failed (not cancelled)
+                    raise outcome
             for train_id in self.services:
                 await self._send(train_id, {"op": "stop"})
             await self._ready(list(self.reported), ANSWER_TIMEOUT_S, self.reported)
@@ -421,9 +423,12 @@ class _LiveRun:
         from railpilot.web.browser import dashboard_screenshot
 
         trains = len([m for m in self.seen.values() if not m["finished"]])
-        self.screenshot = await asyncio.to_thread(
-            dashboard_screenshot, url, self.options.screenshot, trains
-        )
+        try:
+            self.screenshot = await asyncio.to_thread(
+                dashboard_screenshot, url, self.options.screenshot, trains
+            )
+        except Exception as exc:  # the browser's trouble is reported, the run goes on
+            self.screenshot = {"screenshot": None, "skipped": f"the screenshot failed: {exc}"}
         self.screenshot["t_s"] = self.options.screenshot_at_s
 
     # ------------------------------------------------------------------ what it gives
