@@ -12,7 +12,7 @@ import pytest
 
 from railpilot.cosim.scenario import load_scenario
 from railpilot.errors import ConfigError
-from railpilot.reproduce import REPRODUCTIONS, line_day
+from railpilot.reproduce import REPRODUCTIONS, base, line_day
 
 #: long enough for the first loaded train to run a section (about 15 s for both runs)
 UNTIL_S = 1800.0
@@ -149,7 +149,8 @@ def test_a_stand_away_from_the_stops_is_found():
 
 
 def test_no_examples_folder_is_a_clear_error(monkeypatch, tmp_path):
-    monkeypatch.setattr(line_day, "__file__", str(tmp_path / "a" / "b" / "c" / "line_day.py"))
+    # the examples are looked for next to the package's source (reproduce/base.py)
+    monkeypatch.setattr(base, "__file__", str(tmp_path / "a" / "b" / "c" / "base.py"))
     monkeypatch.chdir(tmp_path)
     with pytest.raises(ConfigError, match="examples are not installed"):
         line_day.scenario_path()

@@ -14,7 +14,7 @@ import pytest
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.scenario import load_scenario
 from railpilot.reproduce import REPRODUCTIONS, line_live
-from railpilot.reproduce.line_day import find_example
+from railpilot.reproduce.base import find_example
 
 
 @pytest.fixture(scope="module")

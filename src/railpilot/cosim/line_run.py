@@ -39,7 +39,6 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.store import AuditEntry, Snapshot, Store
 from railpilot.link import KeyStore, OnboardConfig
 from railpilot.net.loadtest import loadtest_keys
@@ -47,7 +46,7 @@ from railpilot.net.loadtest import loadtest_keys
 from .driver import SectionRun, Service, TrainDriver
 from .link_sim import LinkSim, SimTrain
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
-from .trackside import Trackside, TrainSeen, TsrWatch
+from .trackside import Trackside, TrainSeen
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
@@ -301,29 +300,9 @@ def _event_action(
         else:
             outcome = sim.operate(action, "scenario")
             entry["result"] = outcome.result
-            if isinstance(action, CancelTsr):
-                # lifted from the track when the dispatcher cancels it
-                watch.trackside.lift_tsr(action.session, sim.now_s)
-            elif isinstance(action, SetTsr):
-                session = int(outcome.result["session"])
-                entry["tsr"] = {
-                    "session": session,
-                    "start_km": action.start_m / 1000.0,
-                    "end_km": action.end_m / 1000.0,
-                    "limit_kmh": round(action.limit_mps * 3.6, 1),
-                    "from_s": action.valid_from_s - sim.start_s,
-                    "until_s": action.valid_until_s - sim.start_s,
-                }
-                watch.trackside.tsrs.append(
-                    TsrWatch(
-                        action.start_m,
-                        action.end_m,
-                        action.limit_mps,
-                        action.valid_from_s,
-                        action.valid_until_s,
-                        session,
-                    )
-                )
+            tsr = watch.trackside.dispatched(action, outcome.result, sim.now_s, sim.start_s)
+            if tsr is not None:
+                entry["tsr"] = tsr
         log.append(entry)
 
     return act

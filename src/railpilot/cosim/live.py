@@ -44,7 +44,6 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError, RailpilotError, is_finite_number
-from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.store import open_store
 from railpilot.net.admin import AdminError, admin_request
 from railpilot.net.timers import LinkClock
@@ -54,7 +53,7 @@ from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult
 from .live_wire import MAX_LINE, receive, send
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
-from .trackside import Trackside, TrainSeen, TsrWatch
+from .trackside import CabView, Trackside, TrainSeen
 
 #: the default time scale (a 9-hour day in 9 minutes)
 DEFAULT_SPEEDUP = 60.0
@@ -156,8 +155,7 @@ class _LiveRun:
         self.clock: LinkClock | None = None
         self.ground: Any = None  # the ground's process
         self.ground_up = False
-        self.ports: dict[str, int] = {"link_port": 0, "http_port": options.http_port}
-        self.ports["admin_port"] = 0
+        self.ports = {"link_port": 0, "http_port": options.http_port, "admin_port": 0}
         self.trains: dict[int, Any] = {}  # train id -> its process
         self.writers: dict[int | str, asyncio.StreamWriter] = {}
         self.hello: dict[int | str, asyncio.Future[None]] = {}
@@ -188,7 +186,7 @@ class _LiveRun:
                 process.start()
                 self.trains[train_id] = process
             await self._ready(list(self.hello), READY_TIMEOUT_S)
-            clock = self.clock = LinkClock(
+            self.clock = LinkClock(
                 self.options.speedup, self.scenario.epoch_s, time.time() + START_LEAD_S
             )
             await self._send("ground", self._start_message())
@@ -218,7 +216,7 @@ class _LiveRun:
         finally:
             control.close()
             self._end_processes()
-        return self._result(clock, wall, ground_counters)
+        return self._result(wall, ground_counters)
 
     def _start_message(self) -> dict[str, Any]:
         assert self.clock is not None
@@ -340,6 +338,7 @@ class _LiveRun:
 
     async def _watch(self) -> None:
         """Once a second: the trains' last reports to the trackside, the cab views back."""
+        shown: dict[int, CabView] = {}
         t = WATCH_S
         while True:
             await self._sleep_until(t + LOOK_AFTER_S)
@@ -350,9 +349,12 @@ class _LiveRun:
             }
             views = self.trackside.look(t, self.scenario.epoch_s + t, seen)
             for train_id, view in views.items():
-                await self._send(
-                    train_id, {"op": "cab", "red_m": view.red_signal_m, "sight_m": view.sight_m}
-                )
+                # a train acts on a change of its cab signal only: the rest is not sent
+                if shown.get(train_id) != view:
+                    shown[train_id] = view
+                    await self._send(
+                        train_id, {"op": "cab", "red_m": view.red_signal_m, "sight_m": view.sight_m}
+                    )
             t += WATCH_S
 
     # ------------------------------------------------------------------ the scenario
@@ -368,7 +370,11 @@ class _LiveRun:
             await self._restart_ground(action.down_s)
             entry["down_s"] = action.down_s
         else:
-            entry["result"] = await self._operate(event)
+            entry["result"] = result = await self._operate(event)
+            assert self.clock is not None
+            tsr = self.trackside.dispatched(action, result, self.clock(), self.scenario.epoch_s)
+            if tsr is not None:
+                entry["tsr"] = tsr
         self.events.append(entry)
 
     async def _restart_ground(self, down_s: float) -> None:
@@ -400,21 +406,6 @@ class _LiveRun:
         if not response.get("ok"):
             raise LiveRunError(f"the ground refused {event.label} at {event.at_s:g} s: {response}")
         result: dict[str, Any] = response["result"]
-        action = event.action
-        if isinstance(action, SetTsr):
-            self.trackside.tsrs.append(
-                TsrWatch(
-                    action.start_m,
-                    action.end_m,
-                    action.limit_mps,
-                    result["valid_from_s"],
-                    result["valid_until_s"],
-                    int(result["session"]),
-                )
-            )
-        elif isinstance(action, CancelTsr):
-            assert self.clock is not None
-            self.trackside.lift_tsr(action.session, self.clock())
         return result
 
     async def _screenshot(self, url: str) -> None:
@@ -433,9 +424,7 @@ class _LiveRun:
 
     # ------------------------------------------------------------------ what it gives
 
-    def _result(
-        self, clock: LinkClock, wall_s: float, ground_counters: dict[str, Any]
-    ) -> LineResult:
+    def _result(self, wall_s: float, ground_counters: dict[str, Any]) -> LineResult:
         drivers = {
             i: TrainRun(
                 self.services[i],
@@ -474,7 +463,7 @@ class _LiveRun:
             snapshot,
             {i: list(r["active_tsrs"]) for i, r in self.results.items()},
             self.end_s,
-            live={"speedup": clock.speedup, "screenshot": self.screenshot},
+            live={"speedup": self.options.speedup, "screenshot": self.screenshot},
         )
         return result
 

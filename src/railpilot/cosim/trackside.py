@@ -22,6 +22,7 @@ from railpilot.ground.occupancy import (
     compute_occupancy,
     direction_sign,
 )
+from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.targets import find_target
 from railpilot.line.model import RailLine
 from railpilot.link import TravelDirection
@@ -85,12 +86,40 @@ class Trackside:
         """Each train's rows (t [s], head km post [m], speed [m/s]) as an array."""
         return {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in self.trace.items()}
 
-    def lift_tsr(self, session: int, now_s: float) -> None:
-        """The dispatcher cancelled TSR ``session`` at ``now_s`` [epoch s]: it is lifted
-        from the track."""
-        for tsr in self.tsrs:
-            if tsr.session == session:
-                tsr.valid_until_s = min(tsr.valid_until_s, now_s)
+    def dispatched(
+        self, operation: object, result: Mapping[str, Any], now_s: float, epoch_s: float
+    ) -> dict[str, Any] | None:
+        """A dispatcher's operation the ground carried out at ``now_s`` [epoch s], as the
+        track takes it: a TSR set is laid from then on, for the validity the ground pinned
+        (its ``result``); a TSR cancelled is lifted. Returns the TSR set as a run's event
+        log shows it (times in s since ``epoch_s``), None for any other operation."""
+        if isinstance(operation, CancelTsr):
+            for tsr in self.tsrs:
+                if tsr.session == operation.session:
+                    tsr.valid_until_s = min(tsr.valid_until_s, now_s)
+            return None
+        if not isinstance(operation, SetTsr):
+            return None
+        session = int(result["session"])
+        valid_from, valid_until = float(result["valid_from_s"]), float(result["valid_until_s"])
+        self.tsrs.append(
+            TsrWatch(
+                operation.start_m,
+                operation.end_m,
+                operation.limit_mps,
+                valid_from,
+                valid_until,
+                session,
+            )
+        )
+        return {
+            "session": session,
+            "start_km": operation.start_m / 1000.0,
+            "end_km": operation.end_m / 1000.0,
+            "limit_kmh": round(operation.limit_mps * 3.6, 1),
+            "from_s": valid_from - epoch_s,
+            "until_s": valid_until - epoch_s,
+        }
 
     def look(self, t: float, now_s: float, seen: Mapping[int, TrainSeen]) -> dict[int, CabView]:
         """The trains on the line at ``t`` [s since the start; ``now_s`` epoch s]: record

@@ -35,7 +35,7 @@ class LinkClock:
     from the same three numbers and the host's wall clock, so they agree without talking.
     """
 
-    __slots__ = ("origin_s", "speedup", "wall_origin_s")
+    __slots__ = ("_wall", "origin_s", "speedup", "wall_origin_s")
 
     def __init__(
         self,
@@ -54,15 +54,17 @@ class LinkClock:
         now = time.time()
         self.wall_origin_s = now if wall_origin_s is None else float(wall_origin_s)
         self.origin_s = self.wall_origin_s if origin_s is None else float(origin_s)
+        # read on every frame: decided once
+        self._wall = self.speedup == 1.0 and self.origin_s == self.wall_origin_s
 
     @property
     def is_wall(self) -> bool:
         """Is this the host's own clock (no scale, no offset)?"""
-        return self.speedup == 1.0 and self.origin_s == self.wall_origin_s
+        return self._wall
 
     def __call__(self) -> float:
         """Now [s since the epoch] on this clock."""
-        if self.is_wall:
+        if self._wall:
             return time.time()
         return self.origin_s + (time.time() - self.wall_origin_s) * self.speedup
 

@@ -6,6 +6,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from railpilot.errors import ConfigError
+
 
 @dataclass
 class Table:
@@ -51,3 +53,21 @@ class Reproduction:
     tables: list[Table] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     findings: list[str] = field(default_factory=list)
+
+
+def find_example(name: str) -> Path:
+    """``examples/NAME`` of the source checkout (the examples are not installed with the
+    package): next to ``src/``, else under the working folder."""
+    candidates = [
+        Path(__file__).resolve().parents[3] / "examples",
+        Path.cwd() / "examples",
+    ]
+    for folder in candidates:
+        if (folder / name).is_file():
+            return folder / name
+    raise ConfigError(
+        f"examples/{name}",
+        ", ".join(str(folder) for folder in candidates),
+        "a railpilot source checkout holding the file (examples are not installed with the "
+        "package): run from the repository",
+    )

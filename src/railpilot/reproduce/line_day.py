@@ -25,8 +25,7 @@ from typing import Any
 import numpy as np
 
 from railpilot.cosim.scenario import LineScenario
-from railpilot.errors import ConfigError
-from railpilot.reproduce.base import Reproduction, Table
+from railpilot.reproduce.base import Reproduction, Table, find_example
 
 SCENARIO_FILE = "line_short_day.toml"
 TIME_DISTANCE_PNG = "line_day_time_distance.png"
@@ -43,24 +42,6 @@ AT_REST_MPS = 0.05
 AT_STOP_M = 100.0
 #: a failure this long [s] before a stand began is its cause (the braking to a stand)
 FAILURE_BRAKING_S = 300.0
-
-
-def find_example(name: str) -> Path:
-    """``examples/NAME`` of the source checkout (the examples are not installed with the
-    package): next to ``src/``, else under the working folder."""
-    candidates = [
-        Path(__file__).resolve().parents[3] / "examples",
-        Path.cwd() / "examples",
-    ]
-    for folder in candidates:
-        if (folder / name).is_file():
-            return folder / name
-    raise ConfigError(
-        f"examples/{name}",
-        ", ".join(str(folder) for folder in candidates),
-        "a railpilot source checkout holding the file (examples are not installed with the "
-        "package): run from the repository",
-    )
 
 
 def scenario_path() -> Path:

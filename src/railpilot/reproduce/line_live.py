@@ -18,8 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from railpilot.reproduce.base import Reproduction, Table
-from railpilot.reproduce.line_day import find_example
+from railpilot.reproduce.base import Reproduction, Table, find_example
 
 SCENARIO_FILE = "line_live_short.toml"
 SCREENSHOT_PNG = "line_live_dashboard.png"
