@@ -16,9 +16,10 @@ import pytest
 from numpy.testing import assert_allclose
 
 from railpilot.cosim.driver import TrainDriver
-from railpilot.cosim.line_run import run_line
+from railpilot.cosim.line_run import line_train, run_line
 from railpilot.cosim.scenario import load_scenario, scenario_from_mapping
 from railpilot.errors import ConfigError
+from railpilot.link import TravelDirection
 from railpilot.onboard.drive import drive, heavy_haul_loaded
 
 BASE = {
@@ -223,3 +224,27 @@ def test_a_train_brought_to_rest_after_its_red_cleared_goes_on():
     at_rest = after[after[:, 2] == 0.0]
     assert len(at_rest) < 120  # [s]: the brake releases, and it goes on
     assert after[-1, 1] > after[0, 1] + 2000.0
+
+
+def test_a_replan_in_the_last_centimetres_of_a_stop_leaves_the_stop_to_finish():
+    """Every train of the day's first station pair passes its stop point by a few
+    millimetres while still moving (the precise stop lands within its tolerance). An
+    event then (here the cab signal) re-planned it from past the end, and the planner
+    refused the backward section: the 60-train benchmark day stopped with a ConfigError."""
+    scenario = load_scenario(Path(__file__).parents[2] / "examples" / "heavy_haul_day.toml")
+    service = scenario.services[0]
+    driver, _ = line_train(scenario, service, True)
+    t = service.stops[0].departure_s
+    while True:  # to the instant it is past its stop point, still moving
+        t += 0.1
+        head, speed = driver.at(t)
+        running = driver._running
+        assert running is not None, "arrived without passing its stop point moving"
+        if running.stepper.position_m > running.route.length_m and speed > 0.0:
+            break
+    sign = 1.0 if driver.direction == TravelDirection.UP else -1.0
+    red = head + sign * 5_000.0  # in the next section: what the train knows changes
+    driver.cab_signal(red, red + sign * 3_000.0, t)
+    driver.at(t + 60.0)
+    assert len(driver.sections) == 1
+    assert driver.sections[0].arrival_s <= t + 60.0

@@ -458,7 +458,14 @@ class TrainDriver:
         new = running.mrsp
         s_now, v_now = stepper.position_m, stepper.speed_mps
         route = running.route
-        if route.next_stop_s(new, s_now) - s_now < 1.0 and running.stopped:
+        to_stop = route.next_stop_s(new, s_now) - s_now
+        if to_stop <= 0.0:
+            # past the point it stops at, in the last centimetres of a precise stop (it
+            # lands within its tolerance either side): the stop in progress ends it, and
+            # nothing is left to plan (it was planned, and the planner refused the
+            # backward section: one 60-train day stopped there)
+            return
+        if to_stop < 1.0 and running.stopped:
             return  # held where it stands
         end_s, sec = route.section_from(new, s_now, v_now)
         profile = None
