@@ -172,6 +172,12 @@ def test_the_examples_load():
         ({"events": [BASE["events"][0] | {"limit_kmh": -5}]}, "events[0].limit_kmh"),
         ({"events": [{"at_min": 1.0, "op": "train_failure", "train": 999}]}, "events[0].train"),
         ({"events": [{"at_min": 1.0, "op": "launch"}]}, "events[0].op"),
+        ({"retiming": []}, "retiming"),
+        ({"retiming": {"enabled": "yes"}}, "retiming.enabled"),
+        ({"retiming": {"headway_min": -1}}, "retiming.headway_min"),
+        ({"retiming": {"every_min": 0}}, "retiming.every_min"),
+        ({"retiming": {"off_plan_min": "2"}}, "retiming.off_plan_min"),
+        ({"retiming": {"energy_weight": 1}}, "retiming.energy_weight"),
     ],
 )
 def test_bad_scenarios_are_refused_naming_the_field(change, field):

@@ -229,6 +229,25 @@ def test_committed_leader_holds_the_follower() -> None:
         assert f.arrival_s[0] == pytest.approx(1160.0, abs=TOL_S)
 
 
+def test_a_train_ahead_not_retimed_holds_the_follower() -> None:
+    # the same leader's section 2->3, given as a train ahead that is not re-timed (on its
+    # last section): the follower is held as by a committed leader, and alone in the
+    # problem without it runs on its own
+    _, b = hand_sections()
+    follow = TrainPlan("F", (b,), (700.0,), (), earliest_departure_s=700.0)
+    ahead = (CommittedSection(2, 3, 780.0, 1100.0),)
+    held = RetimeProblem((follow,), 60.0, 700.0, 0.5, ahead)
+    free = RetimeProblem((follow,), 60.0, 700.0, 0.5)
+    for result in (retime(held), fixed_plan(held)):
+        f = result.train("F")
+        assert f.departure_s[0] >= 840.0 - TOL_S
+        assert f.arrival_s[0] == pytest.approx(1160.0, abs=TOL_S)
+    assert retime(free).train("F").arrival_s[0] < 1000.0
+    with pytest.raises(ConfigError) as err:
+        RetimeProblem((follow,), 60.0, 700.0, 0.5, ("not a section",))  # type: ignore[arg-type]
+    assert err.value.field == "ahead"
+
+
 def test_message_carries_the_running_times() -> None:
     times = retime(one_train(30.0, 0.5)).trains[0]
     message = times.message()

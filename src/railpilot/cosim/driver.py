@@ -19,6 +19,14 @@ What the train knows of red signals comes two ways:
   blocks ahead, from the track circuits, with no radio. A heavy-haul locomotive's train
   control (LKJ) has it; it is why a train in a radio dead zone never passes a red signal.
 
+The advised train reports its planned curve to the ground (link ``PlannedCurve``, when its
+predicted running time moves: onboard/report.py): the time run on the section and the
+time still needed, which is its plan's time to go to where the plan ends, and the rest of
+the section at the pace of its running time, if the plan ends short (a red signal, a
+failure). The ground may answer with new running times for the sections ahead
+(``RunningTimes``, ground/retimer.py): each section departed after that is planned for
+the ground's time, and the one being run is planned again for it.
+
 ``advised=False`` is the baseline driver (docs/line-run.md, "The baseline"): no planned
 curve (the fastest run to the static limits less the margin, braking late) and no target
 points from the ground (the cab signal only); TSRs are obeyed as orders.
@@ -43,12 +51,14 @@ from railpilot.line.model import UP, RailLine
 from railpilot.link.events import (
     AppliedTsr,
     Event,
+    MessageReceived,
     TargetPointReceived,
     TsrApplied,
     TsrCancelled,
     TsrExpired,
 )
-from railpilot.link.messages import TargetPoint, TargetReason, TravelDirection
+from railpilot.link.messages import PlannedCurve as CurveReport
+from railpilot.link.messages import RunningTimes, TargetPoint, TargetReason, TravelDirection
 from railpilot.onboard.drive import (
     DEFAULT_MARGIN_KMH,
     StationRoute,
@@ -60,6 +70,7 @@ from railpilot.onboard.drive import (
 )
 from railpilot.onboard.mrsp import Mrsp, TargetStop, km_post_m, most_restrictive_profile
 from railpilot.onboard.planner import PlannedCurve, fastest
+from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.stepper import Stepper
@@ -154,6 +165,9 @@ class SectionRun:
     energy_regenerated_kwh: float = 0.0
     stops_at_red: int = 0
     replans: int = 0
+    #: the running time the train planned the section for [s]: the timetable's, or the
+    #: ground's re-timing (its last, if it came while the train ran the section)
+    target_running_time_s: float = math.nan
 
     @property
     def planned_running_time_s(self) -> float:
@@ -175,6 +189,9 @@ class _Running:
     mrsp: Mrsp
     record: SectionRun
     stopped: bool = False  # at rest short of the station (a red signal, a failure)
+    #: the plan tracked: its curve, where it starts and ends [m from the departure stop]
+    #: (None: a stand, no plan)
+    plan: tuple[PlannedCurve, float, float] | None = None
 
 
 @dataclass
@@ -192,6 +209,11 @@ class TrainDriver:
     sections: list[SectionRun] = field(default_factory=list)
     #: red-signal stops (cab signal or target point), failure stands excluded
     red_signal_stops: int = 0
+    #: the running times the ground sent [s] by station pair (its last for each)
+    running_times: dict[tuple[int, int], float] = field(default_factory=dict)
+    #: how many ``RunningTimes`` messages changed a running time it held (a message is
+    #: sent again on every registration)
+    running_times_received: int = 0
 
     def __post_init__(self) -> None:
         self.preset: TrainPreset = train_preset(self.service.kind)
@@ -206,6 +228,7 @@ class TrainDriver:
         self._failure_m: float | None = None
         self._held = False  # at a stop whose way out is held
         self._released_s = -math.inf  # when it was last let go (its departure, if held)
+        self._reporter = PlannedCurveReporter()
         static = _route(self.line, self.service.kind, *self._pair(0), self.margin_kmh).static
         top = float(np.max(static.speeds_mps[np.isfinite(static.speeds_mps)]))
         self._safety_m = float(safety_distance_m(top, self.preset.train.max_service_decel_mps2))
@@ -314,8 +337,11 @@ class TrainDriver:
         from_id, to_id = self._pair(k)
         route = _route(self.line, self.service.kind, from_id, to_id, self.margin_kmh)
         stops = self.service.stops
-        planned = stops[k + 1].arrival_s - stops[k].departure_s
+        planned = self.running_times.get(
+            (from_id, to_id), stops[k + 1].arrival_s - stops[k].departure_s
+        )
         record = SectionRun(from_id, to_id, stops[k].departure_s, stops[k + 1].arrival_s, t)
+        record.target_running_time_s = planned
         mrsp = self._mrsp(route, t)
         end_s, sec = route.section_from(mrsp, 0.0, 0.0)
         if not np.any(sec.ceiling_mps > 0.0):
@@ -334,7 +360,7 @@ class TrainDriver:
         )
         stepper = Stepper(scenario, controller)
         retarget(stepper.controller_params, stepper.controller_state, end_s)
-        self._running = _Running(route, stepper, t, planned, mrsp, record)
+        self._running = _Running(route, stepper, t, planned, mrsp, record, plan=(curve, 0.0, end_s))
         return True
 
     def _arrive(self, t: float) -> None:
@@ -363,9 +389,64 @@ class TrainDriver:
         elif isinstance(event, TargetPointReceived) and self.advised:
             target = event.target
             self._target = None if is_clear(target, self.line) else target
+        elif isinstance(event, MessageReceived) and isinstance(event.message, RunningTimes):
+            self._new_running_times(event.message, t)
+            return
         else:
             return
         self.replan(t)
+
+    def _new_running_times(self, message: RunningTimes, t: float) -> None:
+        """The ground re-timed the train: the sections ahead are planned for its times,
+        and so is the one being run if the message has it (module docstring)."""
+        new_times = {(t.from_station_id, t.to_station_id): t.running_time_s for t in message.times}
+        if all(self.running_times.get(pair) == r for pair, r in new_times.items()):
+            return  # the same again (sent on a registration)
+        self.running_times_received += 1
+        self.running_times.update(new_times)
+        self.advance(t)
+        running = self._running
+        if running is None:
+            return
+        record = running.record
+        new = self.running_times.get((record.from_station, record.to_station))
+        if new is None or new == running.running_time_s:
+            return
+        running.running_time_s = record.target_running_time_s = new
+        if not running.stopped:
+            self._follow(running, t)
+
+    # ------------------------------------------------------------------ what it tells
+
+    def planned_curve_report(self, t: float) -> CurveReport | None:
+        """The planned-curve report due at ``t`` (None: none due; the baseline sends
+        none): the section run or just arrived from, the time run and the time its plan
+        still needs (module docstring)."""
+        if not self.advised:
+            return None
+        self.advance(t)
+        running = self._running
+        if running is not None:
+            record = running.record
+            elapsed = t - record.departure_s
+            remaining = self._remaining_s(running)
+        elif self.sections:
+            record = self.sections[-1]
+            elapsed, remaining = record.running_time_s, 0.0
+        else:
+            return None  # not yet departed: the timetable stands
+        return self._reporter.update(record.from_station, record.to_station, elapsed, remaining, t)
+
+    @staticmethod
+    def _remaining_s(running: _Running) -> float:
+        position = running.stepper.position_m
+        length = running.route.length_m
+        pace = running.running_time_s / length  # [s/m]
+        if running.plan is None:
+            return (length - position) * pace
+        curve, s0, end_s = running.plan
+        to_go = remaining_time_s(curve, position - s0)
+        return to_go + max(length - max(end_s, position), 0.0) * pace
 
     def cab_signal(self, red_signal_m: float | None, sight_m: float, t: float) -> None:
         """The aspect of the signals ahead from the track (module docstring): the km post
@@ -475,6 +556,7 @@ class TrainDriver:
             curve = self._curve(route, end_s, sec, remaining, s_now)
             try:
                 profile = PlannedProfile(curve.s_m + s_now, curve.speed_mps)
+                running.plan = (curve, s_now, end_s)
             except ConfigError:
                 # a plan that comes to rest short of its end (a train creeping onto a
                 # stop just ahead): nothing to track but a stand
@@ -488,11 +570,13 @@ class TrainDriver:
                 # it went on to pass it at red, before this hold)
                 stepper.hold()
                 running.stopped = True
+                running.plan = None
                 return
             end_s, (s_stand, v_stand) = _stand_curve(
                 s_now, v_now, self.preset.train.max_service_decel_mps2
             )
             profile = PlannedProfile(s_stand, v_stand)
+            running.plan = None
         stepper.replace_reference(profile)
         retarget(stepper.controller_params, stepper.controller_state, end_s)
         running.record.replans += 1

@@ -45,6 +45,7 @@ from railpilot.net.loadtest import loadtest_keys
 
 from .driver import SectionRun, Service, TrainDriver
 from .link_sim import LinkSim, SimTrain
+from .retiming import retimer_factory
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
 from .trackside import Trackside, TrainSeen
 
@@ -65,6 +66,7 @@ class DrivenTrain(Protocol):
     sections: list[SectionRun]
     finished: bool
     red_signal_stops: int
+    running_times_received: int
 
 
 @dataclass
@@ -94,6 +96,8 @@ class LineResult:
     end_s: float | None = None
     #: a live run's (cosim/live.py): its time scale and the dashboard's screenshot
     live: dict[str, Any] | None = None
+    #: the ground's re-timings (ground/retimer.py ``OnlineRetimer.log``)
+    retiming: list[dict[str, Any]] = field(default_factory=list)
 
     @property
     def sim_s(self) -> float:
@@ -128,6 +132,7 @@ class LineResult:
                 "energy_traction_kwh": round(sum(s.energy_traction_kwh for s in sections), 1),
                 "energy_regenerated_kwh": round(sum(s.energy_regenerated_kwh for s in sections), 1),
                 "red_signal_stops": driver.red_signal_stops,
+                "running_times_received": driver.running_times_received,
                 "arrival_delay_s": None,
             }
             if sections:
@@ -159,6 +164,7 @@ class LineResult:
                 1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
             ),
             "link": self.link,
+            "retiming": _retiming_summary(self.retiming),
             "ground_restarts": self.restarts,
             "wall_s": round(self.wall_s, 3),
             **({"live": self.live} if self.live is not None else {}),
@@ -178,6 +184,31 @@ class LineResult:
                 )
             }
         return out
+
+
+def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
+    """The ground's re-timings: how many, how solved, who was sent new times, and what
+    the solver expected (lateness at the destinations [s], fixed plan against re-timed)."""
+    solved = [e for e in log if "lateness_s" in e]
+    return {
+        "runs": len(solved),
+        "fallbacks": sum(1 for e in solved if e["status"].startswith("fallback")),
+        "trains_sent_times": sorted({i for e in solved for i in e.get("sent_to", ())}),
+        "messages_sent": sum(len(e.get("sent_to", ())) for e in solved),
+        "log": [
+            {
+                "t_s": round(e["t_s"], 1),
+                "trigger": e["trigger"],
+                "status": e["status"],
+                "trains": e["trains"],
+                "sent_to": e.get("sent_to", []),
+                "lateness_fixed_s": round(e["lateness_fixed_s"], 1),
+                "lateness_s": round(e["lateness_s"], 1),
+                "solve_ms": round(e["solve_ms"], 1),
+            }
+            for e in solved
+        ],
+    }
 
 
 def _conformity(actual_s: float, planned_s: float) -> float:
@@ -237,12 +268,21 @@ def run_line(
     for service in scenario.services:
         driver, config = line_train(scenario, service, advised)
         drivers[service.train_id] = driver
-        trains.append(SimTrain(config, driver, driver.power_on_s, driver.on_event))
+        trains.append(
+            SimTrain(
+                config, driver, driver.power_on_s, driver.on_event, driver.planned_curve_report
+            )
+        )
     keys = line_keys(scenario, seed)
     # the ground keeps its TSRs, deliveries and audit log in a store, as the live ground
     # does (in memory: it outlives the simulated ground process, not this one)
     store = Store(":memory:", synchronous="NORMAL")
-    sim = LinkSim(line, trains, scenario.channel, keys, seed=seed, start_s=epoch, store=store)
+    # the baseline has no re-timing: the fixed plan (issue 12 item 4)
+    retimings: list[dict[str, Any]] = []
+    retimer = retimer_factory(scenario, retimings) if advised else None
+    sim = LinkSim(
+        line, trains, scenario.channel, keys, seed=seed, start_s=epoch, store=store, retimer=retimer
+    )
     watch = _Watch(sim, drivers, on_watch)
     events: list[dict[str, Any]] = []
     for event in scenario.events:
@@ -271,6 +311,7 @@ def run_line(
         snapshot,
         {i: sorted(endpoint.active_tsrs) for i, endpoint in sim.onboard.items()},
         end,
+        retiming=retimings,
     )
 
 

@@ -49,12 +49,15 @@ from railpilot.ground.dispatch import (
     Command,
     DeliverTsr,
     GroundDispatch,
+    KeptCommand,
     Outcome,
+    SendRunningTimes,
     SendTargetPoint,
     command_trains,
 )
 from railpilot.ground.journal import GroundJournal, command_request, declared_restrictions
 from railpilot.ground.operations import Operation
+from railpilot.ground.retimer import OnlineRetimer
 from railpilot.ground.store import GroundStore
 from railpilot.line.model import RailLine
 from railpilot.link import (
@@ -68,6 +71,7 @@ from railpilot.link import (
     OnboardConfig,
     OnboardEndpoint,
     OnboardState,
+    PlannedCurve,
     Registered,
     RunningInfo,
     TrainDeregistered,
@@ -95,6 +99,9 @@ class SimTrain:
     start_s: float = 0.0
     #: every onboard event, with the simulated time [s since the epoch]
     on_event: Callable[[Event, float], None] | None = None
+    #: the onboard's planned-curve report due at a time [s since the start of the run]
+    #: (None: none due), asked for at each onboard tick while registered
+    report: Callable[[float], PlannedCurve | None] | None = None
 
 
 @dataclass
@@ -149,6 +156,9 @@ class LinkSim:
     store
         The ground's store (module docstring); None: the ground keeps everything in
         memory, and cannot be restarted.
+    retimer
+        Makes the ground's re-timing in the loop (ground/retimer.py), for the first
+        ground and for each restarted one (None: no re-timing).
     """
 
     def __init__(
@@ -163,6 +173,7 @@ class LinkSim:
         ground_id: int = 1,
         tick_s: float = TICK_S,
         store: GroundStore | None = None,
+        retimer: Callable[[], OnlineRetimer] | None = None,
     ) -> None:
         if not trains:
             raise ConfigError("trains", [], "at least one train")
@@ -180,6 +191,7 @@ class LinkSim:
         self.tick_s = tick_s
         self.ground_config = GroundConfig(ground_id=ground_id, timers=timers)
         self.records: dict[int, TrainRecord] = {}
+        self._retimer = retimer
         self.dispatch = self._new_dispatch()
         self.journal = GroundJournal(store) if store is not None else None
         #: whether the ground is running (:meth:`restart_ground`)
@@ -382,7 +394,13 @@ class LinkSim:
         train_id, deadline = item
         if self._due("onboard", train_id, deadline):
             self._refresh(train_id)
-            self.onboard[train_id].tick(self.now_s)
+            onboard = self.onboard[train_id]
+            report = self.trains[train_id].report
+            if report is not None and onboard.state is OnboardState.REGISTERED:
+                message = report(self.now_s - self.start_s)
+                if message is not None:
+                    onboard.send(message, self.now_s)
+            onboard.tick(self.now_s)
             self._after_onboard(train_id, self._serial_of(train_id))
 
     def _on_ground_tick(self, item: tuple[int, float]) -> None:
@@ -417,7 +435,10 @@ class LinkSim:
 
     def _new_dispatch(self) -> GroundDispatch:
         timers = self.ground_config.timers
-        return GroundDispatch(self.line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        dispatch = GroundDispatch(self.line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        if self._retimer is not None:
+            dispatch.retimer = self._retimer()
+        return dispatch
 
     # ------------------------------------------------------------------ the two ends
 
@@ -528,8 +549,17 @@ class LinkSim:
 
     def _deliver(self, train_id: int, command: Command) -> None:
         """On the train's live connection, else into its record for the next
-        registration (as ``GroundServer._deliver``)."""
+        registration (as ``GroundServer._deliver``); running times only on a live
+        registered connection, and not kept (ground/dispatch.py ``SendRunningTimes``)."""
+        if isinstance(command, SendRunningTimes):
+            live = self.live.get(train_id)
+            if live is not None and live.open and live.ground.holds_registration:
+                live.ground.send(command.times, self.now_s)
+                self._after_ground(live)
+            return
+        self._deliver_kept(train_id, command)
 
+    def _deliver_kept(self, train_id: int, command: KeptCommand) -> None:
         def apply(dest: GroundEndpoint | TrainRecord, now_s: float) -> None:
             _apply(dest, command, now_s)
 
@@ -549,7 +579,7 @@ class LinkSim:
         apply(record, self.now_s)
 
 
-def _apply(dest: GroundEndpoint | TrainRecord, command: Command, now_s: float) -> None:
+def _apply(dest: GroundEndpoint | TrainRecord, command: KeptCommand, now_s: float) -> None:
     """Carry out ``command`` on a train's live endpoint (sent now) or on its record (sent
     on its next registration), as ``GroundServer``'s delivery methods do."""
     if isinstance(dest, GroundEndpoint):

@@ -84,6 +84,7 @@ class TrainRun:
     sections: list[SectionRun]
     finished: bool
     red_signal_stops: int
+    running_times_received: int
 
 
 @dataclass
@@ -166,6 +167,8 @@ class _LiveRun:
         self.events: list[dict[str, Any]] = []
         self.restarts: list[dict[str, Any]] = []
         self.screenshot: dict[str, Any] | None = None
+        #: the (last) ground process's re-timings (a killed ground's go with it)
+        self.retiming: list[dict[str, Any]] = []
 
     # ------------------------------------------------------------------ the run
 
@@ -281,6 +284,7 @@ class _LiveRun:
         except TimeoutError:
             raise LiveRunError("the ground did not report its counters") from None
         counters: dict[str, Any] = message["counters"]
+        self.retiming = message["retiming"]
         await asyncio.to_thread(self.ground.join, ANSWER_TIMEOUT_S)
         return counters
 
@@ -431,6 +435,7 @@ class _LiveRun:
                 [SectionRun(**s) for s in r["sections"]],
                 bool(r["finished"]),
                 int(r["red_signal_stops"]),
+                int(r["running_times_received"]),
             )
             for i, r in sorted(self.results.items())
         }
@@ -464,6 +469,7 @@ class _LiveRun:
             {i: list(r["active_tsrs"]) for i, r in self.results.items()},
             self.end_s,
             live={"speedup": self.options.speedup, "screenshot": self.screenshot},
+            retiming=self.retiming,
         )
         return result
 

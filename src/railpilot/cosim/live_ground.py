@@ -23,6 +23,7 @@ from railpilot.web.ground_source import ServerSource, serve_dashboard
 
 from .line_run import line_keys
 from .live_wire import connect, receive, send
+from .retiming import retimer_factory
 from .scenario import load_scenario
 
 
@@ -71,6 +72,10 @@ async def _main(args: GroundArgs) -> None:
         clock=clock,
     )
     dispatch = DispatchHost(server, scenario.line)
+    retimings: list[dict[str, object]] = []
+    make_retimer = retimer_factory(scenario, retimings)
+    if make_retimer is not None:
+        dispatch.dispatch.retimer = make_retimer()
     http, http_task = await serve_dashboard(
         ServerSource(dispatch), token=args.token, port=args.http_port
     )
@@ -91,7 +96,7 @@ async def _main(args: GroundArgs) -> None:
     )
     while (message := await receive(reader)) is not None and message["op"] != "stop":
         pass
-    await send(writer, {"op": "counters", "counters": server.counters()})
+    await send(writer, {"op": "counters", "counters": server.counters(), "retiming": retimings})
     await admin.stop()
     dispatch.stop()
     await server.stop(timeout_s=1.0)

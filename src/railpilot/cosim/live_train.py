@@ -116,6 +116,12 @@ async def _main(args: TrainArgs) -> None:
         if ended.is_set():
             break
         head, speed = driver.at(t)
+        if client.state is OnboardState.REGISTERED:
+            # the planned-curve report, asked for each second as the co-simulation's
+            # onboard tick does
+            report = driver.planned_curve_report(t)
+            if report is not None:
+                client.send(report)
         await send(
             writer,
             {
@@ -144,6 +150,7 @@ async def _main(args: TrainArgs) -> None:
             "sections": [dataclasses.asdict(s) for s in driver.sections],
             "finished": driver.finished,
             "red_signal_stops": driver.red_signal_stops,
+            "running_times_received": driver.running_times_received,
             "tsr_applied": {str(k): v for k, v in applied.items()},
             "onboard": counters_dict([client.endpoint.counters]),
             "connects": client.connects,

@@ -12,6 +12,13 @@ TOML::
     loss = 0.3
     dead_zones = [{ start_km = 150.0, end_km = 156.0 }]
 
+    [retiming]                      # the ground re-times trains off plan (ground/retimer.py)
+    enabled = true                  # the default; false: the fixed plan
+    headway_min = 8.0               # fixed-block headway between trains on a section
+    energy_weight_s_per_kwh = 0.25  # one kWh is worth this many seconds of lateness
+    off_plan_min = 2.0              # a train this far off its plan is re-timed ...
+    every_min = 5.0                 # ... at most this often
+
     [[services]]                    # one train, or a series of them at a fixed interval
     kind = "loaded"                 # loaded | empty (the heavy-haul presets)
     from = 1                        # station ids; the direction follows
@@ -60,6 +67,7 @@ from typing import Any
 
 from railpilot.errors import ConfigError, ScenarioError, is_finite_number
 from railpilot.ground.operations import Operation, OperationError, parse_operation
+from railpilot.ground.retimer import RetimerSettings
 from railpilot.line.loader import load_line
 from railpilot.line.model import RailLine
 
@@ -76,8 +84,16 @@ TOP_KEYS = (
     "start_epoch_s",
     "margin_kmh",
     "channel",
+    "retiming",
     "services",
     "events",
+)
+RETIMING_KEYS = (
+    "enabled",
+    "headway_min",
+    "energy_weight_s_per_kwh",
+    "off_plan_min",
+    "every_min",
 )
 SERVICE_KEYS = (
     "kind",
@@ -134,6 +150,8 @@ class LineScenario:
     epoch_s: float = DEFAULT_EPOCH_S
     margin_kmh: float = 5.0
     events: tuple[ScenarioEvent, ...] = field(default_factory=tuple)
+    #: how the ground re-times trains off plan (None: it does not; the fixed plan)
+    retiming: RetimerSettings | None = field(default_factory=RetimerSettings)
 
     def with_(self, **changes: Any) -> LineScenario:
         """A copy with some fields changed (a sweep's seed, a test's channel)."""
@@ -264,6 +282,33 @@ def _events(
     return tuple(sorted(events, key=lambda e: e.at_s))
 
 
+def _retiming(raw: Any) -> RetimerSettings | None:
+    if not isinstance(raw, Mapping):
+        raise ScenarioError("retiming", raw, "a [retiming] table")
+    table = _check_keys(raw, "retiming.", RETIMING_KEYS)
+    enabled = table.get("enabled", True)
+    if not isinstance(enabled, bool):
+        raise ScenarioError("retiming.enabled", enabled, "true or false")
+    default = RetimerSettings()
+    settings = RetimerSettings(
+        headway_s=_number(table, "headway_min", "retiming.", 0.0, 120.0, default.headway_s / 60)
+        * 60.0,
+        energy_weight_s_per_kwh=_number(
+            table,
+            "energy_weight_s_per_kwh",
+            "retiming.",
+            0.0,
+            1e4,
+            default.energy_weight_s_per_kwh,
+        ),
+        off_plan_s=_number(table, "off_plan_min", "retiming.", 0.1, 120.0, default.off_plan_s / 60)
+        * 60.0,
+        every_s=_number(table, "every_min", "retiming.", 0.1, 24 * 60.0, default.every_s / 60)
+        * 60.0,
+    )
+    return settings if enabled else None
+
+
 def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
     """A :class:`LineScenario` from a parsed file, every field checked (module docstring)."""
     _check_keys(data, "", TOP_KEYS)
@@ -282,11 +327,14 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
     if not isinstance(channel_table, Mapping):
         raise ScenarioError("channel", channel_table, "a [channel] table")
     channel = ChannelModel.from_mapping(channel_table)
+    retiming = _retiming(data.get("retiming", {}))
     services = _services(data.get("services"), line, margin)
     events = _events(
         data.get("events", []), line, epoch_s, duration_s, {s.train_id for s in services}
     )
-    return LineScenario(name, line, services, channel, seed, duration_s, epoch_s, margin, events)
+    return LineScenario(
+        name, line, services, channel, seed, duration_s, epoch_s, margin, events, retiming
+    )
 
 
 def load_scenario(path: str | os.PathLike[str]) -> LineScenario:

@@ -40,7 +40,13 @@ from railpilot.link import (
     TrainDeregistered,
     TrainRegistered,
 )
-from railpilot.link.messages import U32_MAX, DispatchCommand, TargetPoint, TargetReason
+from railpilot.link.messages import (
+    U32_MAX,
+    DispatchCommand,
+    RunningTimes,
+    TargetPoint,
+    TargetReason,
+)
 from railpilot.units import km_post_to_m, m_to_km_post, mps_to_kmh
 
 from .occupancy import (
@@ -63,6 +69,7 @@ from .operations import (
     config_error_field,
 )
 from .registry import TrainRegistry
+from .retimer import OnlineRetimer
 from .store import Snapshot
 from .targets import DeclaredRestriction, TargetPointTracker, is_clear
 from .tsr_manager import Cancel, Deliver, LineTsr, LineTsrState, TrainRoute, TsrManager
@@ -108,12 +115,26 @@ class SendDispatchCommand:
     actor: str
 
 
-Command = DeliverTsr | CancelTsrOn | SendTargetPoint | SendDispatchCommand
+@dataclass(frozen=True)
+class SendRunningTimes:
+    """Send ``times`` to ``train_id`` now if it is registered (unacknowledged; not kept:
+    the re-timing is derived state, and a train that registers later is sent its last
+    times by :meth:`GroundDispatch.on_event`)."""
+
+    train_id: int
+    times: RunningTimes
+
+
+#: what the ground keeps in its store before it leaves (ground/journal.py)
+KeptCommand = DeliverTsr | CancelTsrOn | SendTargetPoint | SendDispatchCommand
+Command = KeptCommand | SendRunningTimes
 
 
 def command_trains(command: Command) -> tuple[int, ...]:
     """The trains a command goes to."""
-    return (command.train_id,) if isinstance(command, SendTargetPoint) else command.train_ids
+    if isinstance(command, SendTargetPoint | SendRunningTimes):
+        return (command.train_id,)
+    return command.train_ids
 
 
 @dataclass(frozen=True)
@@ -157,6 +178,8 @@ class GroundDispatch:
             lambda: deque(maxlen=HISTORY_SAMPLES)
         )
         self.occupancy: Occupancy | None = None
+        #: re-timing in the loop (ground/retimer.py), if the ground holds the timetables
+        self.retimer: OnlineRetimer | None = None
         self._next_command = 1
         #: bumped by every change a dispatcher's view should show
         self.version = 0
@@ -170,9 +193,15 @@ class GroundDispatch:
         if isinstance(event, TrainRegistered):
             registry.connected(event.train_id)
             registry.registered(event.train_id, event.request)
-            return self._route_changed(event.train_id, now_s)
+            commands = self._route_changed(event.train_id, now_s)
+            times = self.retimer.times_for(event.train_id) if self.retimer else None
+            if times is not None:
+                commands.append(SendRunningTimes(event.train_id, times))
+            return commands
         if isinstance(event, TrainDeregistered):
             registry.deregistered(event.train_id)
+            if self.retimer is not None:
+                self.retimer.left(event.train_id)
             self.tsrs.forget(event.train_id)
             self.targets.forget(event.train_id)
             return []
@@ -188,6 +217,8 @@ class GroundDispatch:
                 return self._route_changed(train_id, now_s)
             if isinstance(message, PlannedCurve):
                 registry.planned_curve(train_id, message, now_s)
+                if self.retimer is not None:
+                    self.retimer.report(train_id, message, now_s)
         elif isinstance(event, PeriodicTimedOut):
             registry.timed_out(train_id)
         elif isinstance(event, LinkFailed):
@@ -247,13 +278,17 @@ class GroundDispatch:
 
     def tick_targets(self, now_s: float) -> list[Command]:
         """The second half of :meth:`tick`: the target points that changed, from the
-        occupancy of the first half."""
+        occupancy of the first half; then the running times of a re-timing, if one is due
+        (ground/retimer.py)."""
         if self.occupancy is None:
             self.occupancy = self.compute_occupancy(now_s)
         events = self.targets.update(self.occupancy, self.restrictions.values(), now_s=now_s)
-        if events:
+        commands: list[Command] = [SendTargetPoint(e.train_id, e.message, "ground") for e in events]
+        if self.retimer is not None:
+            commands += [SendRunningTimes(i, m) for i, m in self.retimer.update(now_s)]
+        if commands:
             self.version += 1
-        return [SendTargetPoint(e.train_id, e.message, "ground") for e in events]
+        return commands
 
     def compute_occupancy(self, now_s: float) -> Occupancy:
         """Block occupancy at ``now_s`` [s] from every registered train's last report (a

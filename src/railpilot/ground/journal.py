@@ -48,8 +48,8 @@ from railpilot.link.ground import Delivery, TsrDelivery
 
 from .dispatch import (
     CancelTsrOn,
-    Command,
     DeliverTsr,
+    KeptCommand,
     SendTargetPoint,
     restriction_from_view,
     restriction_view,
@@ -119,7 +119,7 @@ def dispatch_request(command: DispatchCommand, actor: str) -> Request:
     return Request("dispatch", actor, {"command": command.command_number, "text": command.text})
 
 
-def command_request(command: Command) -> Request:
+def command_request(command: KeptCommand) -> Request:
     """The request the store keeps for one of the dispatch core's commands."""
     if isinstance(command, DeliverTsr):
         tsr = command.tsr

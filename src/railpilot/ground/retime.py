@@ -467,12 +467,17 @@ class RetimeProblem:
         The time of the re-timing [s]; no remaining section starts before it.
     energy_weight_s_per_kwh
         What one kWh is worth in seconds of (weighted) lateness.
+    ahead
+        Sections run or being run by trains ahead of all of ``trains`` that are not
+        re-timed (a train on its last section), front first: like a train's
+        ``committed`` sections, they bound the trains behind by the headway.
     """
 
     trains: tuple[TrainPlan, ...]
     headway_s: float
     now_s: float
     energy_weight_s_per_kwh: float
+    ahead: tuple[CommittedSection, ...] = ()
 
     def __post_init__(self) -> None:
         trains = tuple(self.trains) if isinstance(self.trains, Sequence) else None
@@ -490,7 +495,11 @@ class RetimeProblem:
             "a weight >= 0 [s per kWh]",
             lo=0.0,
         )
+        ahead = tuple(self.ahead) if isinstance(self.ahead, Sequence) else None
+        if ahead is None or not all(isinstance(c, CommittedSection) for c in ahead):
+            raise ConfigError("ahead", self.ahead, "a tuple of CommittedSection")
         object.__setattr__(self, "trains", trains)
+        object.__setattr__(self, "ahead", ahead)
         _ = self._layout  # the order and the section pairs are checked here, once
 
     @cached_property
@@ -604,7 +613,10 @@ def _pairs(
     """
     trains = problem.trains
     n = int(start[-1])
-    committed = [(k, c) for k, t in enumerate(trains) for c in t.committed]
+    # the sections of trains ahead come first in the order (negative, front first)
+    ahead = problem.ahead
+    committed = [(i - len(ahead), c) for i, c in enumerate(ahead)]
+    committed += [(k, c) for k, t in enumerate(trains) for c in t.committed]
     key = np.array([s.key for s in sections] + [c.key for _, c in committed], dtype=np.int64)
     order = np.concatenate(
         [np.repeat(np.arange(len(trains)), np.diff(start)), [k for k, _ in committed]]

@@ -42,6 +42,7 @@ from railpilot.link import (
     OnboardConfig,
     OnboardEndpoint,
     OnboardState,
+    PlannedCurve,
     Registered,
     RegistrationRefused,
     RunningInfo,
@@ -213,6 +214,16 @@ class OnboardClient:
         """Wait until the train is registered on a live link (bound it with
         ``asyncio.timeout``)."""
         await self._registered.wait()
+
+    def send(self, message: PlannedCurve) -> bool:
+        """Send an application message now (a planned-curve report) if registered;
+        False if not (nothing is kept for later)."""
+        if self.state is not OnboardState.REGISTERED:
+            return False
+        now = self.clock()
+        self.endpoint.send(message, now)
+        self._after(now)
+        return True
 
     def drop_connection(self) -> None:
         """Abort the current TCP connection (tests: simulate a radio loss)."""

@@ -37,6 +37,7 @@ from railpilot.ground.dispatch import (
     DeliverTsr,
     GroundDispatch,
     Outcome,
+    SendRunningTimes,
     SendTargetPoint,
     command_trains,
 )
@@ -285,6 +286,8 @@ class DispatchHost:
             return s.cancel_tsr(train_ids, command.session, actor=command.actor)
         if isinstance(command, SendTargetPoint):
             return s.send_target_point(train_ids, command.target, actor=command.actor)
+        if isinstance(command, SendRunningTimes):
+            return s.send_running_times(train_ids, command.times)
         return s.send_dispatch_command(train_ids, command.command, actor=command.actor)
 
     def _carry_out(self, commands: list[Command]) -> dict[int, str]:

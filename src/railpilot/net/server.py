@@ -66,6 +66,7 @@ from railpilot.link import (
     MessageReceived,
     PeriodicTimedOut,
     RunningInfo,
+    RunningTimes,
     SequenceGap,
     TargetPoint,
     TargetPointAcknowledged,
@@ -471,6 +472,22 @@ class GroundServer:
                 dest.add_dispatch_command(command)
 
         return self._each(train_ids, dispatch_request(command, actor), apply)
+
+    def send_running_times(self, train_ids: Iterable[int], times: RunningTimes) -> dict[int, str]:
+        """Send running times now to each train registered on an open connection. They are
+        unacknowledged and not kept: a train not connected is not sent them (the dispatch
+        core sends its last ones when it registers)."""
+        now = self.clock()
+        results: dict[int, str] = {}
+        for train_id in train_ids:
+            conn = self.live.get(train_id)
+            if conn is not None and conn.open and conn.endpoint.holds_registration:
+                conn.endpoint.send(times, now)
+                conn._after(now)
+                results[train_id] = "sent"
+            else:
+                results[train_id] = "not sent: the train is not registered"
+        return results
 
     # --- status -------------------------------------------------------------------------------
 

@@ -211,6 +211,10 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
         row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
     row("trains finished", _finished(advised), _finished(baseline))
+    ra, rb = advised.get("retiming"), baseline.get("retiming")
+    if ra is not None and rb is not None:
+        row("re-timings by the ground", ra["runs"], rb["runs"])
+        row("running-time messages sent", ra["messages_sent"], rb["messages_sent"])
     if "ground_restarts" in advised and "ground_restarts" in baseline:
         row("ground restarts", len(advised["ground_restarts"]), len(baseline["ground_restarts"]))
     return Table(
@@ -357,6 +361,16 @@ def findings(advised: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
         f"Red-signal stops: {advised['red_signal_stops']} advised, "
         f"{baseline['red_signal_stops']} baseline."
     )
+    retiming = advised.get("retiming")
+    if retiming is not None and retiming["runs"]:
+        trains = ", ".join(
+            advised["trains"][str(i)]["number"] for i in retiming["trains_sent_times"]
+        )
+        out.append(
+            f"The ground re-timed {retiming['runs']} times "
+            f"({retiming['fallbacks']} by the fallback) and sent new running times "
+            f"{retiming['messages_sent']} times, to {trains}; the baseline runs the fixed plan."
+        )
     for restart in advised.get("ground_restarts", []):
         up = restart.get("up_at_s")
         out.append(

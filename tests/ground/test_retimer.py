@@ -1,0 +1,241 @@
+"""Re-timing in the loop (railpilot.ground.retimer), issue 12 item 3.
+
+A small line (stations 1 to 4, three sections of 1000 s planned, 800 s at the fastest), a
+train every 10 minutes each way, synthetic energy curves: what the retimer hears (planned
+curve reports), when it re-times, whom it re-times, and what it sends, checked against the
+timetable and the LP's own rules worked out here (never slower than the timetable, never
+faster than the fastest run, the headway behind a train that is not re-timed).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from railpilot.errors import ConfigError
+from railpilot.ground.dispatch import GroundDispatch, SendRunningTimes
+from railpilot.ground.retime import EnergyCurve
+from railpilot.ground.retimer import (
+    OnlineRetimer,
+    RetimerSettings,
+    SectionCurve,
+    TimetabledTrain,
+    timetabled,
+)
+from railpilot.line import load_line
+from railpilot.link import TrainRegistered
+from railpilot.link.messages import PlannedCurve, RegisterRequest, RunningTimes
+
+PLANNED_S = 1000.0
+FASTEST_S = 800.0
+DWELL_S = 120.0  # planned
+MIN_DWELL_S = 60.0
+HEADWAY_S = 300.0
+T0 = 10_000.0
+STOPS_M = (0.0, 30_000.0, 60_000.0, 90_000.0)
+CURVE = SectionCurve(
+    FASTEST_S, EnergyCurve((FASTEST_S, 900.0, PLANNED_S, 1200.0), (60.0, 45.0, 36.0, 30.0))
+)
+
+
+def train(train_id: int, first_departure_s: float, up: bool = True) -> TimetabledTrain:
+    stations = (1, 2, 3, 4) if up else (4, 3, 2, 1)
+    stops = STOPS_M if up else STOPS_M[::-1]
+    dep = [first_departure_s + j * (PLANNED_S + DWELL_S) for j in range(3)]
+    return timetabled(train_id, stations, stops, dep, [d + PLANNED_S for d in dep], MIN_DWELL_S)
+
+
+def retimer(*trains: TimetabledTrain, **settings: float) -> OnlineRetimer:
+    asked: list[tuple[int, int, int]] = []
+
+    def curves(train_id: int, a: int, b: int) -> SectionCurve:
+        asked.append((train_id, a, b))
+        return CURVE
+
+    made = OnlineRetimer(
+        {t.train_id: t for t in trains},
+        curves,
+        RetimerSettings(headway_s=HEADWAY_S, **settings),
+    )
+    made.asked = asked  # type: ignore[attr-defined]
+    return made
+
+
+def report(r: OnlineRetimer, train_id: int, now_s: float, section: int, late_s: float) -> None:
+    """A report from ``train_id`` running ``section`` (0-based) ``late_s`` behind its plan
+    (its planned time run so far, the rest late)."""
+    t = r.trains[train_id]
+    elapsed = now_s - t.departures_s[section]
+    remaining = t.arrivals_s[section] + late_s - now_s
+    r.report(
+        train_id,
+        PlannedCurve(t.stations[section], t.stations[section + 1], elapsed, remaining),
+        now_s,
+    )
+
+
+def three_up() -> OnlineRetimer:
+    return retimer(train(1, T0), train(2, T0 + 600.0), train(3, T0 + 1200.0))
+
+
+def times_of(message: RunningTimes) -> dict[tuple[int, int], float]:
+    return {(t.from_station_id, t.to_station_id): t.running_time_s for t in message.times}
+
+
+def test_trains_on_plan_are_not_retimed() -> None:
+    r = three_up()
+    now = T0 + 1300.0
+    for i, section in ((1, 1), (2, 0), (3, 0)):
+        report(r, i, now, section, late_s=30.0)  # within off_plan_s = 120 s
+    assert r.update(now) == []
+    assert r.update(now + 400.0) == []
+    assert r.log == []
+
+
+def test_a_late_train_and_those_behind_it_are_retimed_and_the_one_ahead_is_not() -> None:
+    r = three_up()
+    start = T0 + 1100.0
+    r.update(start)  # the ground comes up: it waits every_s for the reports
+    now = start + 300.0
+    report(r, 1, now, 1, late_s=0.0)  # ahead, on time
+    report(r, 2, now, 0, late_s=600.0)  # ten minutes late
+    report(r, 3, now, 0, late_s=0.0)  # behind, just departed, on time
+    assert r.off_plan(now) == [2]
+    sent = dict(r.update(now))
+    assert set(sent) == {2, 3}
+    (entry,) = r.log
+    assert entry["trigger"] == 2
+    assert entry["trains"] == [2, 3]
+    assert entry["status"] == "optimal"
+    # the late train recovers: each remaining section no slower than the timetable, no
+    # faster than the fastest run, and faster in total
+    late = times_of(sent[2])
+    assert set(late) == {(2, 3), (3, 4)}
+    assert all(FASTEST_S - 1e-6 <= v <= PLANNED_S + 1e-6 for v in late.values())
+    assert sum(late.values()) < 2 * PLANNED_S - 60.0
+    assert entry["lateness_s"] < entry["lateness_fixed_s"]
+    # and is planned ahead of its old plan in force
+    assert r.planned_arrivals(2)[2] < r.trains[2].arrivals_s[2] + 600.0
+    # the one behind is held by the headway behind the late one, not sped past it
+    behind = r.planned_arrivals(3)
+    assert np.all(behind[1:] >= r.planned_arrivals(2)[1:] + HEADWAY_S - 1e-6)
+    assert r.times_for(2) == sent[2]
+    # nobody is sent a time slower than the timetable's, even where a dwell's margin
+    # would let the LP save energy on it
+    for message in sent.values():
+        assert all(FASTEST_S - 1e-6 <= v <= PLANNED_S + 1e-6 for v in times_of(message).values())
+
+
+def test_no_retiming_in_the_first_every_s_nor_more_often() -> None:
+    r = three_up()
+    now = T0 + 900.0
+    report(r, 1, now, 0, late_s=600.0)
+    assert r.update(now) == []  # just started
+    assert r.update(now + 299.0) == []
+    assert r.update(now + 300.0) != []
+    report(r, 1, now + 400.0, 0, late_s=1200.0)  # later still: off the new plan
+    assert r.update(now + 400.0) == []  # too soon after the last
+    assert r.update(now + 600.0) != []
+    assert len(r.log) == 2
+
+
+def test_a_train_on_its_last_section_does_not_trigger_but_bounds_the_one_behind() -> None:
+    r = retimer(train(1, T0), train(2, T0 + 600.0))
+    r.update(T0)
+    now = T0 + 2 * (PLANNED_S + DWELL_S) + 100.0  # train 1 on its last section
+    report(r, 1, now, 2, late_s=900.0)
+    assert r.off_plan(now) == []
+    report(r, 2, now, 1, late_s=300.0)  # 2 late on its middle section
+    sent = dict(r.update(now))
+    assert set(sent) == {2}
+    assert r.log[-1]["trains"] == [2]
+    # train 1 arrives at 4 at its report's time: train 2 not before that plus the headway
+    arrival_1 = r.trains[1].arrivals_s[2] + 900.0
+    assert r.planned_arrivals(2)[2] >= arrival_1 + HEADWAY_S - 1e-6
+
+
+def test_the_other_direction_is_retimed_on_its_own() -> None:
+    r = retimer(train(1, T0), train(2, T0 + 600.0), train(11, T0, up=False))
+    r.update(T0)
+    now = T0 + 500.0
+    report(r, 11, now, 0, late_s=600.0)
+    report(r, 1, now, 0, late_s=0.0)
+    report(r, 2, now - 400.0 + 600.0, 0, late_s=0.0)
+    sent = dict(r.update(now + 300.0))
+    assert set(sent) == {11}
+
+
+def test_a_train_not_heard_of_long_after_its_departure_is_left_out() -> None:
+    r = three_up()
+    r.update(T0)
+    now = T0 + 1500.0
+    report(r, 1, now, 1, late_s=0.0)
+    report(r, 2, now, 0, late_s=600.0)
+    # train 3 was due away at T0 + 1200, 300 s ago (= every_s): still counted as at its
+    # origin; 1 s later it is not known
+    sent = dict(r.update(now + 1.0))
+    assert 3 not in sent and 3 not in r.log[-1]["trains"]
+
+
+def test_a_train_at_its_destination_is_done() -> None:
+    r = retimer(train(1, T0))
+    t = r.trains[1]
+    r.report(1, PlannedCurve(3, 4, PLANNED_S + 700.0, 0.0), t.arrivals_s[2] + 700.0)
+    r.update(T0)
+    assert r.off_plan(t.arrivals_s[2] + 2000.0) == []
+
+
+def test_a_report_off_the_timetable_is_ignored() -> None:
+    r = three_up()
+    r.report(1, PlannedCurve(1, 3, 10.0, 10.0), T0 + 10.0)  # not a section of it
+    r.report(99, PlannedCurve(1, 2, 10.0, 10.0), T0 + 10.0)  # not a train of it
+    assert r.off_plan(T0 + 5000.0) == []
+
+
+def test_the_dispatch_core_sends_a_registering_train_its_last_times() -> None:
+    dispatch = GroundDispatch(load_line("heavy-haul"))
+    r = three_up()
+    dispatch.retimer = r
+    r.update(T0)
+    now = T0 + 900.0
+    report(r, 1, now, 0, late_s=600.0)
+    commands = dispatch.tick(now)
+    sent = [c for c in commands if isinstance(c, SendRunningTimes)]
+    assert {c.train_id for c in sent} == {1, 2, 3}
+    request = RegisterRequest("K1", "HXD10001", 1, 1600.0)
+    again = dispatch.on_event(1, TrainRegistered(1, request), now + 5.0)
+    (resent,) = [c for c in again if isinstance(c, SendRunningTimes)]
+    assert resent.times == r.times_for(1)
+
+
+@pytest.mark.parametrize(
+    ("field", "value"),
+    [
+        ("headway_s", -1.0),
+        ("energy_weight_s_per_kwh", math.nan),
+        ("off_plan_s", 0.0),
+        ("every_s", "5"),
+    ],
+)
+def test_bad_settings_name_the_field(field: str, value: object) -> None:
+    with pytest.raises(ConfigError) as error:
+        RetimerSettings(**{field: value})  # type: ignore[arg-type]
+    assert error.value.field == f"retiming.{field}"
+
+
+def test_a_bad_timetable_names_the_train() -> None:
+    with pytest.raises(ConfigError, match="timetable of train 7"):
+        timetabled(7, (1, 2), (0.0, 1.0), (10.0,), (5.0,), 60.0)
+
+
+def test_a_train_running_early_is_not_slowed_below_its_timetable() -> None:
+    # early by 200 s: it waits for its departures (never early) and runs its timetable;
+    # the dwell's 60 s margin would let an LP free to run slower save energy with it
+    r = retimer(train(1, T0))
+    r.update(T0)
+    now = T0 + 500.0
+    report(r, 1, now, 0, late_s=-200.0)
+    (sent,) = dict(r.update(now)).values()
+    assert times_of(sent) == pytest.approx({(2, 3): PLANNED_S, (3, 4): PLANNED_S}, abs=1e-6)
