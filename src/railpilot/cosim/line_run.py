@@ -39,6 +39,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from railpilot.ground.retime import STATUS_FALLBACK
 from railpilot.ground.store import AuditEntry, Snapshot, Store
 from railpilot.link import KeyStore, OnboardConfig
 from railpilot.net.loadtest import loadtest_keys
@@ -192,7 +193,7 @@ def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
     solved = [e for e in log if "lateness_s" in e]
     return {
         "runs": len(solved),
-        "fallbacks": sum(1 for e in solved if e["status"].startswith("fallback")),
+        "fallbacks": sum(1 for e in solved if e["status"] == STATUS_FALLBACK),
         "trains_sent_times": sorted({i for e in solved for i in e.get("sent_to", ())}),
         "messages_sent": sum(len(e.get("sent_to", ())) for e in solved),
         "log": [

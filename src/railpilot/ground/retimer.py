@@ -52,9 +52,11 @@ starts a new retimer, which re-times again the trains still off their timetable.
 
 from __future__ import annotations
 
+import itertools
 import math
 from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -156,6 +158,11 @@ class TimetabledTrain:
     def up(self) -> bool:
         return self.stations[-1] > self.stations[0]
 
+    @cached_property
+    def section_of(self) -> dict[tuple[int, int], int]:
+        """Station pair -> its section's index (built once: every report looks it up)."""
+        return {pair: j for j, pair in enumerate(itertools.pairwise(self.stations))}
+
 
 @dataclass(frozen=True)
 class _Progress:
@@ -200,11 +207,9 @@ class OnlineRetimer:
         timetable = self.trains.get(train_id)
         if timetable is None:
             return
-        pair = (report.from_station_id, report.to_station_id)
-        sections = list(zip(timetable.stations, timetable.stations[1:], strict=False))
-        if pair not in sections:
+        j = timetable.section_of.get((report.from_station_id, report.to_station_id))
+        if j is None:
             return  # not a section of its timetable: nothing the ground can re-time
-        j = sections.index(pair)
         arrived = report.remaining_s <= 0.0
         total = report.elapsed_s + report.remaining_s
         self._progress[train_id] = _Progress(
@@ -214,7 +219,7 @@ class OnlineRetimer:
             arrived,
             1.0 if arrived or total <= 0.0 else report.elapsed_s / total,
         )
-        if arrived and j == len(sections) - 1:
+        if arrived and j == len(timetable.stations) - 2:
             self._done.add(train_id)
 
     def left(self, train_id: int) -> None:
