@@ -15,6 +15,7 @@ from railpilot.control.pstop import (
     P_TAU,
     S_U_STOP,
     PredictiveStop,
+    _predicted_stop_m,
     _split,
     _stop_command,
     fast_path_limit,
@@ -95,6 +96,24 @@ def test_instant_brake_net_acceleration_adds_to_the_command():
     params = PredictiveStop(0.0, 0.0).params
     stop = predicted_stop_m(params, 10.0, 12.0, steady_slow(-0.5), -0.5, -0.1, 0.1)
     assert_allclose(stop, 10.0 + 144.0 / 1.2, rtol=1e-12)
+
+
+@pytest.mark.parametrize("u", [-1.2, -0.6, -0.3, -0.1, 0.0, 0.2])
+@pytest.mark.parametrize("beyond", [50.0, 400.0, 3_000.0])
+def test_a_prediction_asked_only_whether_it_passes_a_point_says_so_as_the_whole_one(u, beyond):
+    # the stop law's questions (stop beyond the point, or not) are answered when the model
+    # train passes the point: the answer is the whole prediction's, and a prediction that
+    # does not pass it is the whole prediction, to the bit
+    params = PredictiveStop(4.0, 6.0).params
+    model = steady_slow(-0.2)
+    whole = predicted_stop_m(params, 0.0, 18.0, model, u, 0.02, 0.5)
+    cut = _predicted_stop_m(params, 0.0, 18.0, model, u, 0.02, 0.5, beyond)
+    assert (cut > beyond) == (whole > beyond)
+    assert (cut >= beyond) == (whole >= beyond)
+    if whole <= beyond:
+        assert cut == whole
+    else:
+        assert beyond < cut <= whole
 
 
 def test_standing_train_is_already_stopped():

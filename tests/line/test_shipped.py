@@ -171,3 +171,21 @@ def test_vehicle_line_round_trip(name, direction):
     assert_allclose(total, rise if direction == UP else -rise, atol=1e-6)
     assert len(vehicle.stations) == len(line.stations)
     assert all(a.stop_m <= b.stop_m for a, b in itertools.pairwise(vehicle.stations))
+
+
+def test_a_line_hashes_as_its_fields_and_afresh_when_unpickled():
+    # the hash is kept (a line keys the caches of its routes and controllers), but it is
+    # the hash of its fields, equal lines hash alike, and a pickled line does not carry it
+    # (string hashes differ between processes)
+    import dataclasses
+    import pickle
+
+    line = load_line("heavy-haul")
+    fields = tuple(getattr(line, f.name) for f in dataclasses.fields(line))
+    assert hash(line) == hash(fields)
+    again = load_line("heavy-haul")
+    assert again == line and hash(again) == hash(line)
+    assert "_hash" not in pickle.loads(pickle.dumps(line)).__dict__
+    assert hash(pickle.loads(pickle.dumps(line))) == hash(line)
+    shorter = dataclasses.replace(line, description="another")
+    assert shorter != line and hash(shorter) != hash(line)

@@ -41,6 +41,19 @@ def test_pieces_equal_one_run(scenario, controller):
         assert_array_equal(pieces[name], whole[name], err_msg=name)
 
 
+def test_pieces_after_the_first_call_the_compiled_loop_directly():
+    # the first piece goes through Numba's dispatcher; later ones call the specialisation
+    # it compiled (sim/stepper.py _compiled_entry): not the dispatcher again, which types
+    # every argument on every call. Bit-identity of the pieces is test_pieces_equal_one_run
+    stepper = Stepper(heavy_haul_scenario(), "pstop")
+    stepper.advance_to(1.0)
+    entry = stepper._compiled
+    assert entry is not None and entry is not stepper._kernel
+    assert any(entry is o.entry_point for o in stepper._kernel.overloads.values())
+    stepper.advance_to(2.0)
+    assert stepper.time_s == pytest.approx(2.0) and stepper._compiled is entry
+
+
 def test_advance_is_idempotent_and_reports_the_train():
     stepper = Stepper(heavy_haul_scenario(), "pstop")
     stepper.advance_to(10.0)

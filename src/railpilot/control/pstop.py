@@ -165,6 +165,29 @@ def predicted_stop_m(
     advanced exactly per step (their inputs held over it); the train with the trapezoid
     of their delivered acceleration, and the last step ends where ``v^2 / (2 a)`` says.
     """
+    return _predicted_stop_m(params, x, v, model, u, net_mps2, step_s, math.inf)
+
+
+@njit(cache=True)
+def _predicted_stop_m(
+    params: np.ndarray,
+    x: float,
+    v: float,
+    model: np.ndarray,
+    u: float,
+    net_mps2: float,
+    step_s: float,
+    beyond_m: float,
+) -> float:
+    """:func:`predicted_stop_m`, or, once the model train is past ``beyond_m`` [m], where
+    it is then (a position > ``beyond_m``; the stop would be farther still).
+
+    The stop law only asks whether the stop falls beyond its point (about 27 predictions
+    every control period while stopping; the onset test one every period from far out):
+    a prediction that has passed the point has its answer, and a command that never stops
+    the train need not be followed for its 6,000 steps. The answers are the same as the
+    whole prediction's, to the bit.
+    """
     if v <= 0.0:
         return x
     n_line = int(params[P_N_LINE])
@@ -192,6 +215,8 @@ def predicted_stop_m(
             return x + v * v / (-2.0 * acc)
         x += 0.5 * (v + v_next) * step_s
         v = v_next
+        if x > beyond_m:
+            return x
     return _FAR
 
 
@@ -208,14 +233,14 @@ def _stop_command(
 ) -> float:
     """The held command that stops the model train at the stop point (bisection in [lo, hi])."""
     stop_m = params[P_STOP]
-    if predicted_stop_m(params, x, v, model, lo, net_mps2, step_s) >= stop_m:
+    if _predicted_stop_m(params, x, v, model, lo, net_mps2, step_s, stop_m) >= stop_m:
         return lo  # even full braking overruns: all of it
-    if predicted_stop_m(params, x, v, model, hi, net_mps2, step_s) <= stop_m:
+    if _predicted_stop_m(params, x, v, model, hi, net_mps2, step_s, stop_m) <= stop_m:
         return hi  # even the least braking stops short: release (or pull)
     low, high = lo, hi
     for _ in range(_BISECTIONS):
         mid = 0.5 * (low + high)
-        if predicted_stop_m(params, x, v, model, mid, net_mps2, step_s) > stop_m:
+        if _predicted_stop_m(params, x, v, model, mid, net_mps2, step_s, stop_m) > stop_m:
             high = mid
         else:
             low = mid
@@ -287,8 +312,9 @@ def pstop_step(
                 look = braking_to_stop
             if look:
                 u_onset = min(max(-b - net, lo), hi)
+                stop_m = params[P_STOP]
                 stopping = (
-                    predicted_stop_m(params, x, v, model, u_onset, net, step) >= params[P_STOP]
+                    _predicted_stop_m(params, x, v, model, u_onset, net, step, stop_m) >= stop_m
                 )
             if not stopping and braking_to_stop and x < ref_x:
                 # behind a time-based reference's position: tracking its speed brakes the

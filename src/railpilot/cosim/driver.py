@@ -68,7 +68,7 @@ from railpilot.onboard.drive import (
     stop_controller,
     train_preset,
 )
-from railpilot.onboard.mrsp import Mrsp, TargetStop, km_post_m, most_restrictive_profile
+from railpilot.onboard.mrsp import Mrsp, TargetStop, direction_sign, most_restrictive_profile
 from railpilot.onboard.planner import PlannedCurve, fastest
 from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 from railpilot.onboard.target_point import safety_distance_m
@@ -218,6 +218,7 @@ class TrainDriver:
     def __post_init__(self) -> None:
         self.preset: TrainPreset = train_preset(self.service.kind)
         self.direction: TravelDirection = self.service.direction
+        self._sign = direction_sign(self.direction)
         self._k = 0  # index of the stop the train is at or departs from
         self._running: _Running | None = None
         self.finished = False
@@ -261,8 +262,9 @@ class TrainDriver:
             station = self.line.station(self.service.stops[self._k].station)
             return station.stop_m(self.direction), 0.0
         stepper = running.stepper
-        head = km_post_m(stepper.position_m, self.direction, running.route.departure_m)
-        return head.item(), stepper.speed_mps
+        # km_post_m's arithmetic on one float (asked for every train several times a second)
+        head = running.route.departure_m + self._sign * stepper.position_m
+        return float(head), stepper.speed_mps
 
     def next_stop_m(self) -> float:
         """Km post [m] of the station the train stops at next: the next one of its
@@ -424,11 +426,14 @@ class TrainDriver:
         still needs (module docstring)."""
         if not self.advised:
             return None
-        self.advance(t)
+        # as of the onboard's last control cycle, as its odometry (``state``): the core is
+        # stepped once a second, not again at each report's instant
+        seen = math.floor(t / ODOMETRY_CYCLE_S + 1e-9) * ODOMETRY_CYCLE_S
+        self.advance(seen)
         running = self._running
         if running is not None:
             record = running.record
-            elapsed = t - record.departure_s
+            elapsed = max(seen - record.departure_s, 0.0)
             remaining = self._remaining_s(running)
         elif self.sections:
             record = self.sections[-1]
@@ -467,7 +472,7 @@ class TrainDriver:
         pos, speed = self.at(t)
         decel = self.preset.train.max_service_decel_mps2
         ahead = speed * speed / decel + 10.0 * speed + 1.0
-        sign = 1.0 if self.direction == UP else -1.0
+        sign = self._sign
         self._failure_m = pos + sign * ahead
         self.replan(t)
 
@@ -482,7 +487,7 @@ class TrainDriver:
         if self._cab_sight_m is None:
             return False
         head, _ = self.at_last()
-        sign = 1.0 if self.direction == UP else -1.0
+        sign = self._sign
         return sign * (signal_m - head) <= sign * (self._cab_sight_m - head)
 
     def _stops_known(self) -> tuple[TargetStop, ...]:

@@ -35,6 +35,7 @@ from __future__ import annotations
 
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
+from functools import lru_cache
 from types import MappingProxyType
 
 from railpilot.errors import ConfigError, is_finite_number
@@ -80,8 +81,10 @@ def line_end_m(line: RailLine, direction: TravelDirection) -> float:
     return line.end_m if check_travel_direction(direction) is UP else line.start_m
 
 
-def blocks_by_id(line: RailLine) -> dict[str, BlockSection]:
-    """The line's block sections by id; ids must be unique across both directions."""
+@lru_cache(maxsize=16)
+def blocks_by_id(line: RailLine) -> Mapping[str, BlockSection]:
+    """The line's block sections by id (read-only); ids must be unique across both
+    directions. Built once per line: the ground asks every second."""
     out: dict[str, BlockSection] = {}
     for section in line.block_sections:
         if section.id in out:
@@ -92,7 +95,7 @@ def blocks_by_id(line: RailLine) -> dict[str, BlockSection]:
                 "block id, in both directions)",
             )
         out[section.id] = section
-    return out
+    return MappingProxyType(out)
 
 
 # ---------------------------------------------------------------------------- inputs

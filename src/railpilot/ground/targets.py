@@ -53,9 +53,11 @@ a train (deregistered). The tracker's counter must survive a ground restart
 
 from __future__ import annotations
 
+import bisect
 import math
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
+from functools import lru_cache
 
 from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import BlockSection, RailLine
@@ -262,6 +264,18 @@ def _reason(
     return None
 
 
+@lru_cache(maxsize=16)
+def _walk(
+    line: RailLine, direction: TravelDirection
+) -> tuple[tuple[BlockSection, ...], tuple[str, ...], list[float]]:
+    """The block sections of ``direction`` in travel order, their ids, and where a train
+    enters each as a distance along its direction (``sign * entry_m``, ascending: what
+    :func:`find_target` bisects its horizon in)."""
+    sections = line.block_sections_for(direction)
+    sign = direction_sign(direction)
+    return sections, tuple(s.id for s in sections), [sign * s.entry_m for s in sections]
+
+
 def find_target(
     line: RailLine,
     occupancy: Occupancy,
@@ -284,7 +298,7 @@ def find_target(
         if horizon_m is None
         else _check_horizon(line, train_id, horizon_m)
     )
-    sections = line.block_sections_for(me.direction)
+    sections, ids, travelled = _walk(line, me.direction)
     first = line.block_index(me.head_block_id, me.direction)
     if first is None:
         raise ConfigError(
@@ -292,12 +306,15 @@ def find_target(
             me.head_block_id,
             f"a block section of line '{line.name}' going {me.direction.name}",
         )
-    for k in range(first, len(sections)):
+    # The head's own section is always looked at (the train is inside it); a section
+    # ahead only when its signal stands before the horizon.
+    end = max(bisect.bisect_left(travelled, sign * horizon), first + 1)
+    occupied = occupancy.by_block
+    for k in range(first, end):
+        block_id = ids[k]
+        if block_id not in occupied and block_id not in held:
+            continue  # free and not declared (most of them: the ground asks every second)
         section = sections[k]
-        # The head's own section is always looked at (the train is inside it); a section
-        # ahead only when its signal stands before the horizon.
-        if k > first and sign * (horizon - section.entry_m) <= 0.0:
-            break
         reason = _reason(section, occupancy, me, held)
         if reason is not None:
             return Target(float(section.entry_m), reason, section.id, section.entry_signal)

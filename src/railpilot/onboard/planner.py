@@ -47,6 +47,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, replace
+from functools import cached_property
 
 import numpy as np
 from numba import njit
@@ -315,6 +316,18 @@ class PlannedCurve:
     def energy_net_kwh(self) -> float:
         """Traction drawn minus regeneration returned [kWh]."""
         return self.energy_traction_kwh - self.energy_regenerated_kwh
+
+    @cached_property
+    def elapsed_s(self) -> np.ndarray:
+        """Time [s] the plan takes from its start to each grid point (trapezoidal in
+        ``1 / v`` between grid points, the planner's own rule; a stretch at rest takes
+        none). Computed once: an onboard asks where it stands on its plan every second."""
+        s, v = self.s_m, self.speed_mps
+        mean = 0.5 * (v[1:] + v[:-1])
+        dt = np.where(mean > 0, np.diff(s) / np.where(mean > 0, mean, 1.0), 0.0)
+        elapsed = np.concatenate([[0.0], np.cumsum(dt)])
+        elapsed.flags.writeable = False
+        return elapsed
 
 
 @dataclass(frozen=True)

@@ -28,11 +28,8 @@ def remaining_time_s(plan: Plan, position_s_m: float) -> float:
     The plan's running time minus its time to reach that point (trapezoidal in ``1 / v``
     between grid points, the planner's own rule); 0 at or beyond the end.
     """
-    s, v = plan.s_m, plan.speed_mps
-    mean = 0.5 * (v[1:] + v[:-1])
-    dt = np.where(mean > 0, np.diff(s) / np.where(mean > 0, mean, 1.0), 0.0)
-    elapsed_plan = np.concatenate([[0.0], np.cumsum(dt)])
-    at = float(np.interp(position_s_m, s, elapsed_plan))
+    elapsed_plan = plan.elapsed_s
+    at = float(np.interp(position_s_m, plan.s_m, elapsed_plan))
     return max(0.0, float(elapsed_plan[-1]) - at)
 
 

@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from typing import TYPE_CHECKING, Any
 
+import numba
 import numpy as np
 
 from railpilot.brakes.registry import brake_entry_of
@@ -57,6 +58,7 @@ class Stepper:
         self._record = np.zeros((-(-n // self._record_every), engine.N_CHANNELS))
         self._metrics = np.zeros(engine.N_METRICS)
         self._kernel = engine.kernel_for(self._binding.cacheable)
+        self._compiled: Any = None  # the kernel's compiled entry for these arguments
 
     @property
     def step(self) -> int:
@@ -119,17 +121,22 @@ class Stepper:
         k_stop = min(math.ceil(time_s / self._inputs.sim.dt - 1e-9), self._inputs.sim.n_steps)
         if k_stop <= self.step:
             return
+        args = (
+            self._inputs,
+            self._binding.step,
+            self._brake_step,
+            self._record,
+            self._record_every,
+            self._metrics,
+            self._state,
+            k_stop,
+        )
         with self._binding:
-            self._kernel(
-                self._inputs,
-                self._binding.step,
-                self._brake_step,
-                self._record,
-                self._record_every,
-                self._metrics,
-                self._state,
-                k_stop,
-            )
+            if self._compiled is None:
+                self._kernel(*args)  # compiled (or loaded) for these argument types
+                self._compiled = _compiled_entry(self._kernel, args)
+            else:
+                self._compiled(*args)
 
     def run_to_end(self) -> None:
         self.advance_to(self._inputs.sim.n_steps * self._inputs.sim.dt)
@@ -152,9 +159,26 @@ class Stepper:
         ato = self._inputs.ato.p.copy()
         ato[A_STOP_M] = profile.stop_m
         self._inputs = self._inputs._replace(ato=self._inputs.ato._replace(p=ato))
+        self._compiled = None  # the new table's type is looked up again
 
     def result(self) -> SimResult:
         """The run so far as one result (what :func:`simulate` returns for a whole run)."""
         rows = self._record[: int(self._state.c[C_N_RECORDS])]
         stop = float(self._inputs.ato.p[A_STOP_M])
         return sim_result(self.scenario, self._binding.name, stop, self._metrics, rows)
+
+
+def _compiled_entry(kernel: Any, args: tuple[Any, ...]) -> Any:
+    """The compiled specialisation of ``kernel`` for the types of ``args``, called directly.
+
+    Why: a line run calls the loop once or twice a second per train for a few steps, and
+    Numba's dispatcher types every argument on every call: the run's inputs are a tuple of
+    tuples of arrays and the steps are compiled functions, which it types in Python (about
+    25 us a call against about 2 us for the entry itself; benchmarks/line_speed.py). The
+    types of a stepper's arguments do not change between calls (the same arrays, the same
+    steps), so they are looked up once. Falls back to the dispatcher if Numba has no entry
+    for them.
+    """
+    signature = tuple(numba.typeof(a) for a in args)
+    compiled = kernel.overloads.get(signature)
+    return compiled.entry_point if compiled is not None else kernel
