@@ -15,7 +15,6 @@ from railpilot.control.pstop import (
     P_TAU,
     S_U_STOP,
     PredictiveStop,
-    _predicted_stop_m,
     _split,
     _stop_command,
     fast_path_limit,
@@ -107,7 +106,7 @@ def test_a_prediction_asked_only_whether_it_passes_a_point_says_so_as_the_whole_
     params = PredictiveStop(4.0, 6.0).params
     model = steady_slow(-0.2)
     whole = predicted_stop_m(params, 0.0, 18.0, model, u, 0.02, 0.5)
-    cut = _predicted_stop_m(params, 0.0, 18.0, model, u, 0.02, 0.5, beyond)
+    cut = predicted_stop_m(params, 0.0, 18.0, model, u, 0.02, 0.5, beyond)
     assert (cut > beyond) == (whole > beyond)
     assert (cut >= beyond) == (whole >= beyond)
     if whole <= beyond:

@@ -156,37 +156,23 @@ def predicted_stop_m(
     u: float,
     net_mps2: float,
     step_s: float,
+    beyond_m: float = math.inf,
 ) -> float:
-    """Where the model train comes to rest holding command ``u`` [m] (``_FAR`` if never).
+    """Where the model train comes to rest holding command ``u`` [m] (``_FAR`` if never);
+    or, once it is past ``beyond_m`` [m], where it is then (a position > ``beyond_m``: the
+    stop would be farther still).
 
     ``model``: the brake model's state ``(a_fast, z_fast, a_slow, z_slow)``;
     ``net_mps2``: what acts besides the brake now (``d_hat - r``); held, or, with a line
     profile, changed by the model's resistance ahead. The two paths are
     advanced exactly per step (their inputs held over it); the train with the trapezoid
     of their delivered acceleration, and the last step ends where ``v^2 / (2 a)`` says.
-    """
-    return _predicted_stop_m(params, x, v, model, u, net_mps2, step_s, math.inf)
 
-
-@njit(cache=True)
-def _predicted_stop_m(
-    params: np.ndarray,
-    x: float,
-    v: float,
-    model: np.ndarray,
-    u: float,
-    net_mps2: float,
-    step_s: float,
-    beyond_m: float,
-) -> float:
-    """:func:`predicted_stop_m`, or, once the model train is past ``beyond_m`` [m], where
-    it is then (a position > ``beyond_m``; the stop would be farther still).
-
-    The stop law only asks whether the stop falls beyond its point (about 27 predictions
-    every control period while stopping; the onset test one every period from far out):
-    a prediction that has passed the point has its answer, and a command that never stops
-    the train need not be followed for its 6,000 steps. The answers are the same as the
-    whole prediction's, to the bit.
+    ``beyond_m``: the stop law only asks whether the stop falls beyond its point (about
+    27 predictions every control period while stopping; the onset test one every period
+    from far out). A prediction that has passed the point has its answer, and a command
+    that never stops the train need not be followed for its 6,000 steps. The answers
+    are the same as the whole prediction's, to the bit.
     """
     if v <= 0.0:
         return x
@@ -233,14 +219,14 @@ def _stop_command(
 ) -> float:
     """The held command that stops the model train at the stop point (bisection in [lo, hi])."""
     stop_m = params[P_STOP]
-    if _predicted_stop_m(params, x, v, model, lo, net_mps2, step_s, stop_m) >= stop_m:
+    if predicted_stop_m(params, x, v, model, lo, net_mps2, step_s, stop_m) >= stop_m:
         return lo  # even full braking overruns: all of it
-    if _predicted_stop_m(params, x, v, model, hi, net_mps2, step_s, stop_m) <= stop_m:
+    if predicted_stop_m(params, x, v, model, hi, net_mps2, step_s, stop_m) <= stop_m:
         return hi  # even the least braking stops short: release (or pull)
     low, high = lo, hi
     for _ in range(_BISECTIONS):
         mid = 0.5 * (low + high)
-        if _predicted_stop_m(params, x, v, model, mid, net_mps2, step_s, stop_m) > stop_m:
+        if predicted_stop_m(params, x, v, model, mid, net_mps2, step_s, stop_m) > stop_m:
             high = mid
         else:
             low = mid
@@ -314,7 +300,7 @@ def pstop_step(
                 u_onset = min(max(-b - net, lo), hi)
                 stop_m = params[P_STOP]
                 stopping = (
-                    _predicted_stop_m(params, x, v, model, u_onset, net, step, stop_m) >= stop_m
+                    predicted_stop_m(params, x, v, model, u_onset, net, step, stop_m) >= stop_m
                 )
             if not stopping and braking_to_stop and x < ref_x:
                 # behind a time-based reference's position: tracking its speed brakes the

@@ -247,8 +247,7 @@ class TrainDriver:
     def state(self, elapsed_s: float) -> tuple[float, float]:
         """``(km post [m], speed [m/s])`` of the head ``elapsed_s`` after power-on, as the
         onboard's last control cycle measured it (``ODOMETRY_CYCLE_S``)."""
-        t = self.power_on_s + elapsed_s
-        return self.at(math.floor(t / ODOMETRY_CYCLE_S + 1e-9) * ODOMETRY_CYCLE_S)
+        return self.at(_last_cycle_s(self.power_on_s + elapsed_s))
 
     def at(self, t: float) -> tuple[float, float]:
         """``(km post [m], speed [m/s])`` of the head at ``t`` [s since the start]."""
@@ -428,7 +427,7 @@ class TrainDriver:
             return None
         # as of the onboard's last control cycle, as its odometry (``state``): the core is
         # stepped once a second, not again at each report's instant
-        seen = math.floor(t / ODOMETRY_CYCLE_S + 1e-9) * ODOMETRY_CYCLE_S
+        seen = _last_cycle_s(t)
         self.advance(seen)
         running = self._running
         if running is not None:
@@ -588,6 +587,12 @@ class TrainDriver:
         if running.stopped:
             stepper.restart()
             running.stopped = False
+
+
+def _last_cycle_s(t: float) -> float:
+    """The start of the onboard's control cycle that ``t`` [s] falls in (its odometry's
+    sample, ``ODOMETRY_CYCLE_S``)."""
+    return math.floor(t / ODOMETRY_CYCLE_S + 1e-9) * ODOMETRY_CYCLE_S
 
 
 def _stand_curve(

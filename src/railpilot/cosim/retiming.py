@@ -67,7 +67,7 @@ def retimer_factory(
 
     def curves(train_id: int, from_id: int, to_id: int) -> SectionCurve:
         t = trains[train_id]
-        j = t.stations.index(from_id)
+        j = t.section_of[(from_id, to_id)]
         planned = round(t.arrivals_s[j] - t.departures_s[j], 3)  # one cache entry per time
         kind = services[train_id].kind
         return section_curve(scenario.line, kind, from_id, to_id, scenario.margin_kmh, planned)
