@@ -2,7 +2,10 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import json
+import re
 
 import numpy as np
 import pytest
@@ -89,3 +92,58 @@ def test_quantiles_are_numpys():
     values = sorted(np.random.default_rng(1).normal(size=37).tolist())
     for q in (0.05, 0.5, 0.95):
         assert _quantile(values, q) == pytest.approx(np.quantile(values, q), abs=1e-4)
+
+
+# --- sweeps -----------------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def tiny_runs(tmp_path_factory):
+    """The tiny day's KPIs run one seed at a time, seeds 5, 6 and 7: what a sweep summarises."""
+    path = tmp_path_factory.mktemp("sweep") / "tiny.toml"
+    path.write_text(TINY)
+    runs = {}
+    for seed in (5, 6, 7):
+        buffer = io.StringIO()
+        with contextlib.redirect_stdout(buffer):
+            args = ["line", "simulate", str(path), "--seed", str(seed), "--no-baseline", "--json"]
+            assert main(args) == 0
+        runs[seed] = json.loads(buffer.getvalue())
+    return path, runs
+
+
+def _check_sweep(out, runs):
+    assert out["runs"] == 3 and out["seeds"] == [5, 7]
+    connects = sorted(r["link"]["connects"] for r in runs.values())
+    # the lossy radio gives the seeds their own days, else the spread below proves nothing
+    assert connects[0] != connects[-1]
+    for key, values in (
+        ("link.connects", connects),
+        ("energy_kwh", sorted(r["energy_kwh"] for r in runs.values())),
+    ):
+        spread = out["kpis"][key]
+        assert (spread["min"], spread["median"], spread["max"]) == tuple(values), key
+    assert out["runs_with_tsr_violations"] == sum(1 for r in runs.values() if r["tsr_violations"])
+
+
+def test_a_sweep_summarises_the_runs_it_would_give_one_by_one(tiny_runs, capsys):
+    path, runs = tiny_runs
+    assert main(["line", "simulate", str(path), "--runs", "3", "--seed", "5", "--json"]) == 0
+    captured = capsys.readouterr()
+    _check_sweep(json.loads(captured.out), runs)
+    # one progress line a finished run, on stderr
+    progress = [line for line in captured.err.splitlines() if line.startswith("seed ")]
+    assert sorted(line.split(":")[0] for line in progress) == ["seed 5", "seed 6", "seed 7"]
+    assert re.fullmatch(r"seed \d: \d+ TSR violations, .* \(3/3, \d+ s\)", progress[-1])
+
+
+def test_a_sweep_on_a_dask_cluster_gives_the_same_summary(tiny_runs, capsys):
+    distributed = pytest.importorskip("dask.distributed")
+    path, runs = tiny_runs
+    # worker processes: each run really is read and run in another interpreter
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None
+    ) as cluster:
+        args = ["line", "simulate", str(path), "--runs", "3", "--seed", "5", "--json"]
+        assert main([*args, "--scheduler", cluster.scheduler_address]) == 0
+    _check_sweep(json.loads(capsys.readouterr().out), runs)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import argparse
 import math
 import time
+from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
@@ -179,18 +180,24 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
     if scheduler is None:
         import multiprocessing
         import os
-        from concurrent.futures import ProcessPoolExecutor
+        from concurrent.futures import ProcessPoolExecutor, as_completed
 
         workers = min(os.cpu_count() or 1, runs)
         context = multiprocessing.get_context("spawn")
         with ProcessPoolExecutor(workers, mp_context=context) as pool:
-            results = list(pool.map(_sweep_run, [str(path)] * runs, seeds))
+            futures = {pool.submit(_sweep_run, str(path), s): s for s in seeds}
+            finished = ((futures[f], f.result()) for f in as_completed(futures))
+            by_seed = _collect(finished, runs, started)
     else:
         from dask.distributed import Client
+        from dask.distributed import as_completed as dask_completed
 
         with Client(scheduler) as client:
-            futures = client.map(_sweep_run, [str(path)] * runs, seeds, pure=False)
-            results = client.gather(futures)
+            submitted = client.map(_sweep_run, [str(path)] * runs, seeds, pure=False)
+            seed_of = {f.key: s for f, s in zip(submitted, seeds, strict=True)}
+            finished = ((seed_of[f.key], f.result()) for f in dask_completed(submitted))
+            by_seed = _collect(finished, runs, started)
+    results = [by_seed[s] for s in seeds]
     out: dict[str, Any] = {
         "scenario": results[0]["scenario"],
         "runs": runs,
@@ -213,6 +220,22 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
                 "mean": round(sum(values) / len(values), 4),
             }
     return out
+
+
+def _collect(
+    finished: Iterator[tuple[int, dict[str, Any]]], runs: int, started: float
+) -> dict[int, dict[str, Any]]:
+    """Each run's KPIs by seed, saying on stderr how far a long sweep is as each one ends."""
+    by_seed: dict[int, dict[str, Any]] = {}
+    for seed, kpis in finished:
+        by_seed[seed] = kpis
+        log(
+            f"seed {seed}: {kpis['tsr_violations']} TSR violations,"
+            f" {kpis['target_points_passed']} target points passed,"
+            f" {kpis['energy_kwh']} kWh ({len(by_seed)}/{runs},"
+            f" {time.perf_counter() - started:.0f} s)"
+        )
+    return by_seed
 
 
 def _dig(obj: dict[str, Any], dotted: str) -> float | None:
