@@ -189,3 +189,28 @@ def test_a_line_hashes_as_its_fields_and_afresh_when_unpickled():
     assert hash(pickle.loads(pickle.dumps(line))) == hash(line)
     shorter = dataclasses.replace(line, description="another")
     assert shorter != line and hash(shorter) != hash(line)
+
+
+def test_an_equal_line_is_loaded_as_the_first_instance(heavy, monkeypatch):
+    # caches keyed by a line find the same instance at once, where an equal copy is
+    # compared item by item on every lookup: every load of an equal line gives the first
+    from railpilot.line import loader
+
+    monkeypatch.setattr(loader, "_INTERNED", dict(loader._INTERNED))  # restored after
+    path = Path(make_heavy_haul.__file__).with_name("heavy_haul.toml")
+    assert load_line("heavy-haul") is heavy
+    assert load_line(path) is heavy
+    copy = loader.read_line(path)
+    assert copy == heavy and copy is not heavy  # what interning saves the caches from
+    text = path.read_text(encoding="utf-8")
+    renamed = loader.parse_line(text.replace('name = "heavy-haul"', 'name = "b"', 1))
+    assert loader.interned(renamed) is renamed
+    # the table keeps the latest few lines, not every line ever loaded
+    variants = [
+        loader.parse_line(text.replace('name = "heavy-haul"', f'name = "v{i}"', 1))
+        for i in range(loader._INTERNED_MAX)
+    ]
+    for variant in variants:
+        assert loader.interned(variant) is variant
+    assert len(loader._INTERNED) == loader._INTERNED_MAX
+    assert loader.interned(copy) is copy  # heavy, the oldest, has gone
