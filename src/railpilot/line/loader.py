@@ -358,5 +358,6 @@ def interned(line: RailLine) -> RailLine:
     """
     first = _INTERNED.setdefault(line, line)
     if len(_INTERNED) > _INTERNED_MAX:
-        del _INTERNED[next(iter(_INTERNED))]  # the oldest: a few lines at a time is the use
+        # the oldest (a few lines at a time is the use); another thread may have evicted it
+        _INTERNED.pop(next(iter(_INTERNED)), None)
     return first
