@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import math
 import os
+import threading
 import tomllib
 from collections.abc import Callable, Mapping
 from importlib import resources
@@ -345,6 +346,7 @@ def load_line(name_or_path: str | os.PathLike[str]) -> RailLine:
 #: the first instance of each line loaded in this process (the most recent few)
 _INTERNED: dict[RailLine, RailLine] = {}
 _INTERNED_MAX = 16
+_INTERNED_LOCK = threading.Lock()
 
 
 def interned(line: RailLine) -> RailLine:
@@ -356,8 +358,8 @@ def interned(line: RailLine) -> RailLine:
     loads its scenario, and so its line, once a run: without this, every run after a
     worker's first ran 2.6 times as slowly as the first.
     """
-    first = _INTERNED.setdefault(line, line)
-    if len(_INTERNED) > _INTERNED_MAX:
-        # the oldest (a few lines at a time is the use); another thread may have evicted it
-        _INTERNED.pop(next(iter(_INTERNED)), None)
+    with _INTERNED_LOCK:  # the dashboard's ground thread loads lines too
+        first = _INTERNED.setdefault(line, line)
+        if len(_INTERNED) > _INTERNED_MAX:
+            del _INTERNED[next(iter(_INTERNED))]  # the oldest: a few lines at a time is the use
     return first
