@@ -153,6 +153,14 @@ class GroundJournal:
         #: (kind, train id, id) -> (state, message) as last committed: what a step
         #: changed is what differs from it.
         self._stored: dict[tuple[str, int, int], tuple[Enum, Any]] = {}
+        #: (kind, train id) -> how many target points (dispatch commands) of the train
+        #: are committed, and the ids of those committed in a state that may still change
+        #: (not acknowledged). Why: a train's books keep every one it was ever sent, and
+        #: a step is committed for every frame; an acknowledged one never changes again,
+        #: so a step looks only at these, at the record's unacknowledged ones and, if
+        #: the book holds more than was committed, at the whole book.
+        self._committed: Counter[tuple[str, int]] = Counter()
+        self._unsettled: dict[tuple[str, int], set[int]] = {}
 
     def record_operation(
         self, operation: Operation, result: Mapping[str, Any], actor: str, now_s: float
@@ -190,6 +198,8 @@ class GroundJournal:
         never applied twice (the onboard applies a session once).
         """
         self._stored.clear()
+        self._committed.clear()
+        self._unsettled.clear()
         not_before_us = round(not_before_s * 1e6)
         counts: Counter[str] = Counter()
         records: dict[int, TrainRecord] = {}
@@ -207,9 +217,16 @@ class GroundJournal:
                 ("dispatch_command", record.dispatch_commands, stored.dispatch_commands),
             ):
                 for ident, (message, dstate) in items.items():
-                    book[ident] = Delivery(message, dstate)
-                    self._stored[kind, train_id, ident] = (dstate, message)
+                    delivery = book[ident] = Delivery(message, dstate)
+                    if dstate is DeliveryState.PENDING:
+                        record.unacknowledged[kind][ident] = delivery
                     counts[dstate.name] += 1
+                self._remember(
+                    [
+                        ((kind, train_id, ident), (dstate, message), None)
+                        for ident, (message, dstate) in items.items()
+                    ]
+                )
             records[train_id] = record
         summary = {
             "trains": len(snapshot.trains),
@@ -244,7 +261,7 @@ class GroundJournal:
                 train_id=train_id,
                 detail=request.detail,
             )
-        self._stored.update((key, value) for key, value, _ in changes)
+        self._remember(changes)
 
     def commit_step(self, record: TrainRecord | None, events: list[Event], now_s: float) -> None:
         """Commit what one step of a connection changed: ``record``'s delivery states
@@ -273,7 +290,7 @@ class GroundJournal:
                             "to": state.name,
                         },
                     )
-        self._stored.update((key, value) for key, value, _ in changes)
+        self._remember(changes)
 
     def _audit_event(self, event: Event, now_s: float) -> None:
         values = {f.name: getattr(event, f.name) for f in dataclass_fields(event)}
@@ -295,18 +312,45 @@ class GroundJournal:
         """Deliveries of ``record`` whose state or message differ from what was committed."""
         train_id = record.train_id
         out: list[_Change] = []
-        for kind, book in (
-            ("tsr", record.tsrs),
-            ("target_point", record.target_points),
-            ("dispatch_command", record.dispatch_commands),
-        ):
-            for ident, item in book.items():
+        stored = self._stored
+        for ident, tsr in record.tsrs.items():  # a handful a day: all of them
+            key = ("tsr", train_id, ident)
+            value: tuple[Enum, Any] = (tsr.state, tsr.tsr)
+            before = stored.get(key)
+            if before != value:
+                out.append((key, value, before))
+        for kind, book in record.delivery_books():
+            if len(book) == self._committed[kind, train_id]:
+                # nothing new: only what may still change (see __init__)
+                idents: Iterable[int] = sorted(
+                    self._unsettled.get((kind, train_id), set()).union(record.unacknowledged[kind])
+                )
+            else:
+                idents = book
+            for ident in idents:
+                item = book.get(ident)
+                if item is None:
+                    continue
                 key = (kind, train_id, ident)
-                value = (item.state, item.tsr if isinstance(item, TsrDelivery) else item.message)
-                before = self._stored.get(key)
+                value = (item.state, item.message)
+                before = stored.get(key)
                 if before != value:
                     out.append((key, value, before))
         return out
+
+    def _remember(self, changes: Iterable[_Change]) -> None:
+        """``changes`` are committed: what a later step compares with."""
+        for key, value, _ in changes:
+            kind, train_id, ident = key
+            if kind != "tsr":
+                if key not in self._stored:
+                    self._committed[kind, train_id] += 1
+                unsettled = self._unsettled.setdefault((kind, train_id), set())
+                if value[0] is DeliveryState.ACKNOWLEDGED:
+                    unsettled.discard(ident)
+                else:
+                    unsettled.add(ident)
+            self._stored[key] = value
 
     def _write_changes(
         self, train_id: int, changes: list[_Change], now_s: float, actor: str, reason: str
@@ -328,10 +372,12 @@ class GroundJournal:
 
 def _scratch(record: TrainRecord) -> TrainRecord:
     """A copy of the delivery books of ``record`` to try a request on (the record methods
-    touch nothing else)."""
+    touch nothing else). The TSRs are copied one by one (a cancellation changes one);
+    the target points and dispatch commands share their deliveries, because a request
+    only adds to those books (and they hold every one the train was ever sent)."""
     return TrainRecord(
         record.train_id,
         tsrs={s: replace(d) for s, d in record.tsrs.items()},
-        dispatch_commands={i: replace(d) for i, d in record.dispatch_commands.items()},
-        target_points={i: replace(d) for i, d in record.target_points.items()},
+        dispatch_commands=dict(record.dispatch_commands),
+        target_points=dict(record.target_points),
     )

@@ -224,6 +224,23 @@ class TrainRecord:
     running_info: HeldValue = field(default_factory=HeldValue)
     #: Onboard clock minus ground clock from the last TIME_OFFSET_REPORT [s].
     time_offset_s: float | None = None
+    #: The target points and dispatch commands not yet acknowledged, by id: the part of
+    #: their books the resend scans look at. Why: the books keep every one ever sent (a
+    #: train is sent dozens of target points a day), an acknowledged one never changes
+    #: again, and the scans run on every frame. Kept by the methods below and by
+    #: ``GroundEndpoint``; built from the books a record is made with.
+    #: ``{"target_point": {id: delivery}, "dispatch_command": {...}}``.
+    unacknowledged: dict[str, dict[int, Delivery]] = field(init=False, repr=False)
+
+    def __post_init__(self) -> None:
+        self.unacknowledged = {
+            kind: {i: d for i, d in book.items() if d.state is DeliveryState.PENDING}
+            for kind, book in self.delivery_books()
+        }
+
+    def delivery_books(self) -> tuple[tuple[str, dict[int, Delivery]], ...]:
+        """``(kind, book)`` of the target points and the dispatch commands."""
+        return (("target_point", self.target_points), ("dispatch_command", self.dispatch_commands))
 
     # The server may call these for a train that is offline; the next connection of the
     # train delivers them after registration.
@@ -251,13 +268,15 @@ class TrainRecord:
 
     def add_target_point(self, target: TargetPoint) -> None:
         """Queue a target point; a new one under the same id replaces the old."""
-        self.target_points[target.target_id] = Delivery(target)
+        delivery = self.target_points[target.target_id] = Delivery(target)
+        self.unacknowledged["target_point"][target.target_id] = delivery
 
     def add_dispatch_command(self, command: DispatchCommand) -> None:
         """Queue a dispatch command (command numbers are used once)."""
         if command.command_number in self.dispatch_commands:
             raise LocalProtocolError(f"dispatch command {command.command_number} already queued")
-        self.dispatch_commands[command.command_number] = Delivery(command)
+        delivery = self.dispatch_commands[command.command_number] = Delivery(command)
+        self.unacknowledged["dispatch_command"][command.command_number] = delivery
 
 
 _ENDPOINT_SERIALS = itertools.count(1)
@@ -425,7 +444,7 @@ class GroundEndpoint(Endpoint):
         times = [self._next_time_check_s]
         times += [d.next_send_s for d in record.tsrs.values() if d.state in _TSR_SENDS_SET]
         times += [d.next_send_s for d in record.tsrs.values() if d.state is TsrState.PENDING_CANCEL]
-        for book in (record.dispatch_commands, record.target_points):
+        for book in record.unacknowledged.values():
             times += [d.next_send_s for d in book.values() if d.state is DeliveryState.PENDING]
         return min(times)
 
@@ -449,7 +468,7 @@ class GroundEndpoint(Endpoint):
                 self.counters.resends += 1
             delivery.next_send_s = now_s + resend
             self._queue(message, now_s)
-        for book in (record.target_points, record.dispatch_commands):
+        for book in record.unacknowledged.values():
             for item in book.values():
                 if item.state is DeliveryState.PENDING and now_s >= item.next_send_s:
                     if item.next_send_s:
@@ -519,7 +538,8 @@ class GroundEndpoint(Endpoint):
                 TSR_TRANSITIONS, delivery.state, _TI.REREGISTERED, remote=False
             )
             delivery.next_send_s = 0.0
-        for book in (record.dispatch_commands, record.target_points):
+        # (an acknowledged target point or dispatch command stays acknowledged)
+        for book in record.unacknowledged.values():
             for item in book.values():
                 item.state = transition(
                     DELIVERY_TRANSITIONS, item.state, DeliveryInput.REREGISTERED, remote=False
@@ -572,17 +592,18 @@ class GroundEndpoint(Endpoint):
 
     def _on_delivery_ack(self, record: TrainRecord, ack: DispatchAck | TargetPointAck) -> None:
         if isinstance(ack, DispatchAck):
-            item = record.dispatch_commands.get(ack.command_number)
-            ident = ack.command_number
+            kind, ident = "dispatch_command", ack.command_number
+            item = record.dispatch_commands.get(ident)
         else:
-            item = record.target_points.get(ack.target_id)
-            ident = ack.target_id
+            kind, ident = "target_point", ack.target_id
+            item = record.target_points.get(ident)
         if item is None:
             raise StateError(f"acknowledgement for {type(ack).__name__} {ident} never sent")
         before = item.state
         item.state = transition(DELIVERY_TRANSITIONS, item.state, DeliveryInput.ACK, remote=True)
         if before is item.state:
             return
+        record.unacknowledged[kind].pop(ident, None)
         if isinstance(ack, DispatchAck):
             self._events.append(DispatchAcknowledged(record.train_id, ack.command_number))
         else:
