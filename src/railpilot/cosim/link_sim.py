@@ -204,6 +204,8 @@ class LinkSim:
         self.channels = {i: RadioChannel(channel, seed, i) for i in self.trains}
         self._jitter = {i: random.Random(f"railpilot-reconnect:{seed}:{i}") for i in self.trains}
         self.stats = {i: TrainLinkStats() for i in self.trains}
+        #: train id -> (position, speed) of its onboard's running info (:meth:`_refresh`)
+        self._seen: dict[int, tuple[float, float]] = {}
         self.live: dict[int, _Connection] = {}  # train id -> its open connection
         self._connections: dict[int, _Connection] = {}  # serial -> connection, open or not
         #: train id -> the serial of the onboard's open connection
@@ -449,7 +451,13 @@ class LinkSim:
     def _refresh(self, train_id: int) -> None:
         """The onboard's running info from where its train is now."""
         train = self.trains[train_id]
-        position, speed = self.position(train_id)
+        seen = self.position(train_id)
+        if self._seen.get(train_id) == seen:
+            # the same as last time (the odometry changes once a control cycle; this is
+            # asked at every frame and tick): the onboard holds that running info already
+            return
+        self._seen[train_id] = seen
+        position, speed = seen
         c = train.config
         self.onboard[train_id].update_running_info(
             RunningInfo(
