@@ -21,6 +21,7 @@ from railpilot.link import (
     RegistrationRefused,
     RunningInfo,
     TargetPoint,
+    TargetPointAcknowledged,
     TargetPointReceived,
     TargetReason,
     TimeCheck,
@@ -364,6 +365,27 @@ def test_target_point_is_delivered_again_only_when_it_changes() -> None:
     received = [e.target for e in link.events_of("onboard", TargetPointReceived)]
     assert received == [first, moved]
     assert link.onboard.target_points[5] == moved
+
+
+def test_an_older_target_point_arriving_late_changes_nothing() -> None:
+    # protocol.md 8.4: the first copy of target 5 is lost; the ground has moved the
+    # target on (a clear, id 6) before its resend of 5 arrives
+    link = registered_link()
+    link.downlink = OnceFilter(MessageType.TARGET_POINT, lambda w: [])
+    held = TargetPoint(5, 30_000.0, TargetReason.TRAIN_AHEAD)
+    clear = TargetPoint(6, 590_000.0, TargetReason.OTHER)
+    link.ground.send_target_point(held, link.now_s)
+    link.run(0.5)
+    link.ground.send_target_point(clear, link.now_s)
+    link.run(0.5)
+    assert 5 not in link.onboard.target_points  # lost, not yet resent
+    link.run(3.0)  # the resend of 5 arrives now, after 6
+    assert link.onboard.target_points[5] == held
+    received = [e.target for e in link.events_of("onboard", TargetPointReceived)]
+    assert received == [clear]
+    assert link.onboard.target_point == clear
+    acknowledged = [e.target_id for e in link.events_of("ground", TargetPointAcknowledged)]
+    assert sorted(acknowledged) == [5, 6]
 
 
 def test_unauthenticated_link_works_when_auth_is_not_required() -> None:

@@ -301,7 +301,9 @@ class TsrExpired(Event):
 
 @dataclass(frozen=True, slots=True)
 class TargetPointReceived(Event):
-    """A new or changed target point (once per content, however often it is resent)."""
+    """The target point in force changed: a newer id than every one before, or new content
+    under the newest (once per content, however often it is resent). An older id arriving
+    late changes nothing and raises no event (protocol.md 8.4)."""
 
     target: TargetPoint
 

@@ -363,9 +363,15 @@ class OnboardEndpoint(Endpoint):
         elif isinstance(message, TsrCancel):
             self._on_tsr_cancel(message, now_s)
         elif isinstance(message, TargetPoint):
-            if self.target_points.get(message.target_id) != message:
-                self.target_points[message.target_id] = message
-                self._events.append(TargetPointReceived(message))
+            ident = message.target_id
+            if self.target_points.get(ident) != message:
+                in_force = not self.target_points or ident >= max(self.target_points)
+                self.target_points[ident] = message
+                if in_force:
+                    self._events.append(TargetPointReceived(message))
+                # else an older id arriving late (a resend overtaken by a newer one): kept
+                # and acknowledged, and it changes nothing (protocol.md 8.4). Reported, it
+                # would put back a target the ground has moved or cleared since
             self._queue(TargetPointAck(message.target_id, TargetPointResult.ACCEPTED), now_s)
         elif isinstance(message, DispatchCommand):
             if message.command_number not in self._dispatch_seen:
