@@ -230,7 +230,7 @@ class TrainRecord:
     #: again, and the scans run on every frame. Kept by the methods below and by
     #: ``GroundEndpoint``; built from the books a record is made with.
     #: ``{"target_point": {id: delivery}, "dispatch_command": {...}}``.
-    unacknowledged: dict[str, dict[int, Delivery]] = field(init=False, repr=False)
+    unacknowledged: dict[str, dict[int, Delivery]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         self.unacknowledged = {
