@@ -205,28 +205,31 @@ class GroundJournal:
         records: dict[int, TrainRecord] = {}
         for stored in snapshot.trains.values():
             train_id = stored.train_id
-            record = TrainRecord(train_id, registration=stored.registration)
-            record.history.not_before_us = not_before_us
+            tsrs = {}
             for session, state in stored.tsrs.items():
                 tsr = snapshot.tsrs[session].tsr
-                record.tsrs[session] = TsrDelivery(tsr, state)
+                tsrs[session] = TsrDelivery(tsr, state)
                 self._stored["tsr", train_id, session] = (state, tsr)
                 counts[state.name] += 1
-            for kind, book, items in (
-                ("target_point", record.target_points, stored.target_points),
-                ("dispatch_command", record.dispatch_commands, stored.dispatch_commands),
+            books: dict[str, dict[int, Delivery]] = {}
+            for kind, items in (
+                ("target_point", stored.target_points),
+                ("dispatch_command", stored.dispatch_commands),
             ):
-                for ident, (message, dstate) in items.items():
-                    delivery = book[ident] = Delivery(message, dstate)
-                    if dstate is DeliveryState.PENDING:
-                        record.unacknowledged[kind][ident] = delivery
-                    counts[dstate.name] += 1
+                books[kind] = {i: Delivery(message, st) for i, (message, st) in items.items()}
+                counts.update(st.name for _, st in items.values())
                 self._remember(
-                    [
-                        ((kind, train_id, ident), (dstate, message), None)
-                        for ident, (message, dstate) in items.items()
-                    ]
+                    ((kind, train_id, i), (st, message), None) for i, (message, st) in items.items()
                 )
+            # made from its books, the record indexes their unacknowledged deliveries
+            record = TrainRecord(
+                train_id,
+                registration=stored.registration,
+                tsrs=tsrs,
+                target_points=books["target_point"],
+                dispatch_commands=books["dispatch_command"],
+            )
+            record.history.not_before_us = not_before_us
             records[train_id] = record
         summary = {
             "trains": len(snapshot.trains),

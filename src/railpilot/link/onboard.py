@@ -365,7 +365,8 @@ class OnboardEndpoint(Endpoint):
         elif isinstance(message, TargetPoint):
             ident = message.target_id
             if self.target_points.get(ident) != message:
-                in_force = not self.target_points or ident >= max(self.target_points)
+                current = self.target_point
+                in_force = current is None or ident >= current.target_id
                 self.target_points[ident] = message
                 if in_force:
                     self._events.append(TargetPointReceived(message))
