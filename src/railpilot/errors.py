@@ -56,6 +56,8 @@ class LineError(ConfigError):
 def is_finite_number(value: object) -> bool:
     """A real, finite number (an int or a float, not a bool): what a check of a number
     from a file, a form or a message starts from."""
+    if type(value) is float:  # the common case, checked millions of times in a line run
+        return math.isfinite(value)
     return (
         isinstance(value, int | float)
         and not isinstance(value, bool)

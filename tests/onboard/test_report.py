@@ -24,6 +24,20 @@ def test_remaining_time_of_a_constant_speed_plan():
     assert remaining_time_s(plan, 2000.0) == 0.0
 
 
+def test_remaining_time_is_numpys_interpolation_to_the_bit():
+    # compiled for speed; the ground re-times on it, so it must not differ in any bit
+    rng = np.random.default_rng(7)
+    s = np.cumsum(rng.uniform(1.0, 30.0, 800))
+    v = rng.uniform(0.0, 25.0, s.size)
+    v[100:140] = 0.0  # a stretch at rest takes no time
+    plan = Plan(s, v, 1.0, 0.0, 0.0, None, None, None, True)
+    elapsed = plan.elapsed_s
+    points = np.concatenate([rng.uniform(s[0] - 50.0, s[-1] + 50.0, 2000), s])
+    for x in points:
+        expected = max(0.0, float(elapsed[-1]) - float(np.interp(x, s, elapsed)))
+        assert remaining_time_s(plan, float(x)) == expected
+
+
 def test_first_update_reports_and_steady_running_does_not():
     reporter = PlannedCurveReporter()
     first = reporter.update(3, 4, 0.0, 600.0, now_s=0.0)

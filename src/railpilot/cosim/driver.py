@@ -297,7 +297,7 @@ class TrainDriver:
             stepper = running.stepper
             stepper.advance_to(t - running.t0)
             if not stepper.at_rest:
-                if stepper.step >= stepper.scenario.sim.n_steps:
+                if stepper.step >= stepper.n_steps:
                     raise ConfigError(
                         f"train {self.train_id}",
                         f"{running.record.from_station}->{running.record.to_station}",

@@ -214,6 +214,7 @@ class LinkSim:
         self._queue: list[tuple[float, int, str, Any]] = []
         self._order = itertools.count()  # ties keep the order they were queued in
         self._deadline: dict[tuple[str, int], float] = {}
+        self._handlers: dict[str, Callable[[Any], None]] = {}  # event kind -> its method
         #: trains leaving the line (:meth:`retire`), until their deregistration is through
         self.retiring: set[int] = set()
         #: trains that have left the line: they never connect again
@@ -228,10 +229,15 @@ class LinkSim:
         """Process every event up to ``t_s`` seconds after the start of the run."""
         end = self.start_s + t_s
         queue = self._queue
+        handlers = self._handlers
         while queue and queue[0][0] <= end:
             at, _, kind, item = heapq.heappop(queue)
             self.now_s = at
-            getattr(self, f"_on_{kind}")(item)
+            handler = handlers.get(kind)
+            if handler is None:
+                # each kind's method looked up once (millions of events in a day)
+                handler = handlers[kind] = getattr(self, f"_on_{kind}")
+            handler(item)
         self.now_s = max(self.now_s, end)
 
     def call_at(self, t_s: float, action: Callable[[], None]) -> None:

@@ -325,9 +325,11 @@ class GroundJournal:
         for kind, book in record.delivery_books():
             if len(book) == self._committed[kind, train_id]:
                 # nothing new: only what may still change (see __init__)
-                idents: Iterable[int] = sorted(
-                    self._unsettled.get((kind, train_id), set()).union(record.unacknowledged[kind])
-                )
+                unsettled = self._unsettled.get((kind, train_id))
+                pending = record.unacknowledged[kind]
+                if not unsettled and not pending:
+                    continue  # the common case: every delivery settled
+                idents: Iterable[int] = sorted((unsettled or set()).union(pending))
             else:
                 idents = book
             for ident in idents:

@@ -145,14 +145,16 @@ class Endpoint:
         if not self._connected:
             return self._extra_deadline_s()
         # no heartbeat is sent before the peer is known (tick() could not act on it)
-        times = [self._next_heartbeat_s] if self._channel.peer_id is not None else []
-        times += [
-            s.deadline_s() for s in self._supervisors.values() if s.active and not s.timed_out
-        ]
+        earliest = self._next_heartbeat_s if self._channel.peer_id is not None else None
+        for supervisor in self._supervisors.values():
+            if supervisor.active and not supervisor.timed_out:
+                deadline = supervisor.deadline_s()
+                if earliest is None or deadline < earliest:
+                    earliest = deadline
         extra = self._extra_deadline_s()
-        if extra is not None:
-            times.append(extra)
-        return min(times) if times else None
+        if extra is not None and (earliest is None or extra < earliest):
+            earliest = extra
+        return earliest
 
     def held_value(self, message_type: MessageType) -> HeldValue | None:
         """Last accepted value of a supervised periodic message, with its validity."""

@@ -441,12 +441,19 @@ class GroundEndpoint(Endpoint):
         record = self.record
         if not self._connected or not self.holds_registration or record is None:
             return None
-        times = [self._next_time_check_s]
-        times += [d.next_send_s for d in record.tsrs.values() if d.state in _TSR_SENDS_SET]
-        times += [d.next_send_s for d in record.tsrs.values() if d.state is TsrState.PENDING_CANCEL]
+        # asked after every step of every connection: one pass, no lists
+        earliest = self._next_time_check_s
+        for tsr in record.tsrs.values():
+            state = tsr.state
+            if (
+                state in _TSR_SENDS_SET or state is TsrState.PENDING_CANCEL
+            ) and tsr.next_send_s < earliest:
+                earliest = tsr.next_send_s
         for book in record.unacknowledged.values():
-            times += [d.next_send_s for d in book.values() if d.state is DeliveryState.PENDING]
-        return min(times)
+            for delivery in book.values():
+                if delivery.state is DeliveryState.PENDING and delivery.next_send_s < earliest:
+                    earliest = delivery.next_send_s
+        return earliest
 
     def _pump(self, now_s: float) -> None:
         """Send every pending delivery that is due (only while the train is registered)."""

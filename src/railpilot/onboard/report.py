@@ -16,6 +16,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from numba import njit
 
 from railpilot.errors import ConfigError
 from railpilot.link.messages import PlannedCurve
@@ -29,8 +30,15 @@ def remaining_time_s(plan: Plan, position_s_m: float) -> float:
     between grid points, the planner's own rule); 0 at or beyond the end.
     """
     elapsed_plan = plan.elapsed_s
-    at = float(np.interp(position_s_m, plan.s_m, elapsed_plan))
-    return max(0.0, float(elapsed_plan[-1]) - at)
+    return _remaining_s(float(position_s_m), plan.s_m, elapsed_plan)
+
+
+@njit(cache=True)
+def _remaining_s(position_s_m: float, s_m: np.ndarray, elapsed: np.ndarray) -> float:
+    # Compiled: every train asks once or twice a second, and np.interp called from Python
+    # on one point costs microseconds (benchmarks/line_speed.py); Numba's np.interp gives
+    # NumPy's results to the bit (tests/onboard/test_report.py).
+    return max(0.0, elapsed[-1] - np.interp(position_s_m, s_m, elapsed))
 
 
 @dataclass

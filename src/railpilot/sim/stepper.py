@@ -59,6 +59,11 @@ class Stepper:
         self._metrics = np.zeros(engine.N_METRICS)
         self._kernel = engine.kernel_for(self._binding.cacheable)
         self._compiled: Any = None  # the kernel's compiled entry for these arguments
+        # read once: a line run asks a stepper to advance several times a second per train,
+        # and most asks fall within the step already run
+        self._dt = self._inputs.sim.dt
+        #: steps the run has (the end of its time, ``sim.duration_s``)
+        self.n_steps = self._inputs.sim.n_steps
 
     @property
     def step(self) -> int:
@@ -67,7 +72,7 @@ class Stepper:
 
     @property
     def time_s(self) -> float:
-        return self.step * self._inputs.sim.dt
+        return self.step * self._dt
 
     @property
     def position_m(self) -> float:
@@ -89,7 +94,7 @@ class Stepper:
 
     @property
     def finished(self) -> bool:
-        return self.at_rest or self.step >= self._inputs.sim.n_steps
+        return self.at_rest or self.step >= self.n_steps
 
     @property
     def controller_params(self) -> np.ndarray:
@@ -118,8 +123,8 @@ class Stepper:
         """Run the steps that start before ``time_s`` [s] (or to the end of the run)."""
         if not math.isfinite(time_s):
             raise ConfigError("time_s", time_s, "a finite time [s]")
-        k_stop = min(math.ceil(time_s / self._inputs.sim.dt - 1e-9), self._inputs.sim.n_steps)
-        if k_stop <= self.step:
+        k_stop = min(math.ceil(time_s / self._dt - 1e-9), self.n_steps)
+        if k_stop <= self._state.c[C_STEPS_RUN]:
             return
         args = (
             self._inputs,
@@ -139,7 +144,7 @@ class Stepper:
                 self._compiled(*args)
 
     def run_to_end(self) -> None:
-        self.advance_to(self._inputs.sim.n_steps * self._inputs.sim.dt)
+        self.advance_to(self.n_steps * self._dt)
 
     def replace_reference(self, profile: PlannedProfile) -> None:
         """Track ``profile`` by distance from the next step on, stopping at its end.
