@@ -205,12 +205,9 @@ class GroundJournal:
         records: dict[int, TrainRecord] = {}
         for stored in snapshot.trains.values():
             train_id = stored.train_id
-            tsrs = {}
-            for session, state in stored.tsrs.items():
-                tsr = snapshot.tsrs[session].tsr
-                tsrs[session] = TsrDelivery(tsr, state)
-                self._stored["tsr", train_id, session] = (state, tsr)
-                counts[state.name] += 1
+            tsrs = {s: TsrDelivery(snapshot.tsrs[s].tsr, st) for s, st in stored.tsrs.items()}
+            counts.update(st.name for st in stored.tsrs.values())
+            self._remember((("tsr", train_id, s), (d.state, d.tsr), None) for s, d in tsrs.items())
             books: dict[str, dict[int, Delivery]] = {}
             for kind, items in (
                 ("target_point", stored.target_points),
