@@ -40,6 +40,7 @@ from .helpers import (
     T0,
     FakeLink,
     OnceFilter,
+    frame_type,
     ground_config,
     header_of,
     make_keys,
@@ -191,6 +192,23 @@ def test_running_info_is_sent_every_cycle_while_registered() -> None:
     link.run(5.0)
     infos = [e for e in link.ground_events if isinstance(e, MessageReceived)]
     assert sum(isinstance(e.message, RunningInfo) for e in infos) == 5
+
+
+def test_running_info_leaves_with_the_heartbeat_in_one_write() -> None:
+    # One write a cycle, not two (protocol.md 7): the first RUNNING_INFO restarts the
+    # heartbeat's cycle, and from then on both fall due in the same tick.
+    link = registered_link()
+    writes: list[list[int]] = []
+
+    def record(frames: list[bytes]) -> list[bytes]:
+        writes.append([frame_type(f) for f in frames])
+        return frames
+
+    link.uplink = record
+    link.onboard.update_running_info(running_info(1000.0))
+    link.run(10.0)
+    assert writes == [[MessageType.HEARTBEAT, MessageType.RUNNING_INFO]] * 10
+    assert not link.events_of("ground", LinkFailed)
 
 
 def test_planned_curve_is_delivered_to_the_ground() -> None:

@@ -43,10 +43,12 @@ from .helpers import (
     FakeLink,
     OnceFilter,
     frame_type,
+    ground_config,
     header_of,
     registered_link,
     rewrite,
     running_info,
+    timers,
 )
 
 SEGMENTATIONS = [None, 11, 12, 13]  # None: whole reads; ints: seeds of random cuts
@@ -253,7 +255,11 @@ def test_corruption(segment_seed: int | None) -> None:
 @pytest.mark.parametrize("segment_seed", SEGMENTATIONS)
 def test_delay(segment_seed: int | None) -> None:
     # Above max_round_trip_s = 3 s, yet short enough that the delayed frames arrive before
-    # the ground's 4 s heartbeat timeout, so it is the delay check that must catch them.
+    # the ground's heartbeat timeout, so it is the delay check that must catch them. The
+    # onboard sends once a cycle (its RUNNING_INFO with its HEARTBEAT), so the first
+    # delayed frame left a whole cycle after the last one accepted: with the default
+    # 3-cycle timeout (4 s) no delay above 3 s would arrive in time. The ground here
+    # waits 5 cycles (6 s); the delay check must still catch the frames first.
     delay_s = 3.2
     holding: list[tuple[float, bytes]] = []
     link_ref: list[FakeLink] = []
@@ -268,12 +274,15 @@ def test_delay(segment_seed: int | None) -> None:
         holding[:] = [(t, f) for t, f in holding if now - t < delay_s]
         return due
 
-    link = registered_link(segment_seed=segment_seed)
+    link = registered_link(
+        segment_seed=segment_seed, ground_cfg=ground_config(timers=timers(timeout_cycles=5))
+    )
     link_ref.append(link)
     link.uplink = delay_line
     for position in LEGIT_POSITIONS[:6]:
         link.onboard.update_running_info(running_info(position))
         link.run(1.0)
+    link.run(3.0)
     delayed = rejections(link.ground_events, DelayRejected)
     assert delayed
     assert link.ground.counters.rejected[Check.DELAY] == len(delayed)

@@ -130,14 +130,20 @@ class Endpoint:
             # nobody to address a heartbeat to.
             if now_s >= self._next_heartbeat_s and self._channel.peer_id is not None:
                 self._send_heartbeat(now_s)
+            # Every message that has timed out by now is reported (its held value made
+            # invalid), then the link fails once. The onboard sends its RUNNING_INFO with its
+            # HEARTBEAT, so both time out at the same instant; stopping at the first would
+            # leave the other's held value valid on a failed link.
+            failed: PeriodicSupervisor | None = None
             for supervisor in self._supervisors.values():
                 if supervisor.poll(now_s):
                     self.counters.timeouts += 1
                     self._events.append(
                         PeriodicTimedOut(supervisor.message_type, supervisor.missed_cycles(now_s))
                     )
-                    self._fail(f"{supervisor.message_type.name} timed out", now_s)
-                    break
+                    failed = failed or supervisor
+            if failed is not None:
+                self._fail(f"{failed.message_type.name} timed out", now_s)
         self._tick(now_s)
 
     def next_deadline_s(self) -> float | None:

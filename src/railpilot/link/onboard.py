@@ -282,6 +282,12 @@ class OnboardEndpoint(Endpoint):
             and now_s >= self._next_running_info_s
         ):
             self._next_running_info_s = now_s + timers.cycle_s
+            if self._next_heartbeat_s != self._next_running_info_s:
+                # A RUNNING_INFO travels with a HEARTBEAT. The first one after registering
+                # restarts the heartbeat's cycle on its own (a heartbeat early is harmless;
+                # the ground counts from the last one): from then on both fall due in the
+                # same tick and leave in one write, one packet a cycle instead of two.
+                self._send_heartbeat(now_s)
             self._queue(self._running_info, now_s)
 
     def _extra_deadline_s(self) -> float | None:
