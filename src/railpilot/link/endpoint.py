@@ -141,7 +141,8 @@ class Endpoint:
                     self._events.append(
                         PeriodicTimedOut(supervisor.message_type, supervisor.missed_cycles(now_s))
                     )
-                    failed = failed or supervisor
+                    if failed is None:
+                        failed = supervisor
             if failed is not None:
                 self._fail(f"{failed.message_type.name} timed out", now_s)
         self._tick(now_s)
