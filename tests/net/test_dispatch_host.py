@@ -14,7 +14,9 @@ from pathlib import Path
 
 import pytest
 
-from railpilot.ground.store import Store
+from railpilot.ground.operations import OperationError
+from railpilot.ground.store import Store, StoreError
+from railpilot.ground.tsr_manager import LineTsrState
 from railpilot.line.loader import load_line
 from railpilot.line.model import UP
 from railpilot.link import DeliveryState, GroundConfig, TargetReason
@@ -196,3 +198,45 @@ def test_the_tick_computes_occupancy_off_the_loop_and_survives_a_failure(
         assert "dispatch tick failed" in caplog.text
 
     run(scenario())
+
+
+def test_an_operation_the_store_refuses_is_not_in_force(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    # Persistence before effect: a TSR set, or cancelled, that the store did not keep must
+    # not stay set, or cancelled, in the dispatch core either (the ground would otherwise
+    # hold a TSR a restart forgets, and number the next one past it).
+    ground = Ground(tmp_path / "ground.db")
+    journal = ground.server.journal
+    assert journal is not None
+    keep = journal.record_operation
+
+    def refuse(*_: object) -> None:
+        raise StoreError("disk full")
+
+    tsr = {
+        "start_km": 300,
+        "end_km": 302,
+        "limit_kmh": 45,
+        "valid_until_min": 60,
+        "reason": "works",
+    }
+    monkeypatch.setattr(journal, "record_operation", refuse)
+    with pytest.raises(OperationError, match="the store refused it: disk full"):
+        ground.host.execute_now("tsr_set", tsr, "d1")
+    assert ground.host.dispatch.tsrs.tsrs() == ()
+
+    monkeypatch.setattr(journal, "record_operation", keep)
+    assert ground.host.execute_now("tsr_set", tsr, "d1")["session"] == 1
+
+    monkeypatch.setattr(journal, "record_operation", refuse)
+    with pytest.raises(OperationError, match="the store refused it"):
+        ground.host.execute_now("tsr_cancel", {"session": 1}, "d1")
+    assert ground.host.dispatch.tsrs.state(1) is LineTsrState.ACTIVE
+
+    monkeypatch.setattr(journal, "record_operation", keep)
+    ground.host.execute_now("tsr_cancel", {"session": 1}, "d1")
+    assert ground.host.dispatch.tsrs.state(1) is LineTsrState.CANCELLED
+    stored = ground.store.load().tsrs
+    assert list(stored) == [1] and stored[1].cancelled_at_s is not None
+    ground.store.close()

@@ -232,11 +232,13 @@ class DispatchHost:
             return {**self.server.status(), "dispatch": self.dispatch.status(now)}
         self._flush()  # every train where it last said it was
         restrictions = dict(self.dispatch.restrictions)
+        tsrs = self.dispatch.tsrs.snapshot()
         outcome = self.dispatch.execute(operation, actor, now)
         try:
             self._record(operation, outcome, actor, now)
         except OperationError:  # not in the store: not in force either, nothing sent
             self.dispatch.restrictions = restrictions
+            self.dispatch.tsrs.roll_back(tsrs)
             raise
         return outcome
 
