@@ -84,15 +84,15 @@ def test_cancel_goes_where_the_tsr_went_and_only_once() -> None:
     assert manager.update_route(up(3, 1_000.0), 12.0) == []
 
 
-def test_rolling_back_forgets_what_was_set_cancelled_or_sent_since_the_snapshot() -> None:
+def test_rolling_back_forgets_what_was_set_cancelled_or_sent_since_the_checkpoint() -> None:
     manager = TsrManager(TOP)
     manager.update_route(up(1, 10_000.0), 0.0)
     manager.set(tsr(7), 0.0)
-    snapshot = manager.snapshot()
+    checkpoint = manager.checkpoint()
     manager.set(tsr(8, start=60_000.0, end=61_000.0), 1.0)
     manager.deliver_also(7, [2])
     manager.cancel(7, 2.0)
-    manager.roll_back(snapshot)
+    manager.roll_back(checkpoint)
     assert [t.session for t in manager.tsrs()] == [7]
     assert (manager.state(7), manager.delivered_to(7)) == (LineTsrState.ACTIVE, (1,))
     assert manager.next_session() == 8

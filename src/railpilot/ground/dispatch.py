@@ -145,6 +145,15 @@ class Outcome:
     commands: tuple[Command, ...]
 
 
+@dataclass(frozen=True)
+class Checkpoint:
+    """What a dispatcher's operation may change in the core, as it was before it
+    (:meth:`GroundDispatch.checkpoint`)."""
+
+    restrictions: dict[int, DeclaredRestriction]
+    tsrs: dict[int, tuple[LineTsrState, frozenset[int]]]
+
+
 # ---------------------------------------------------------------------------- the core
 
 
@@ -364,6 +373,18 @@ class GroundDispatch:
         except ConfigError as exc:  # a rule of the core (a session reused, ...)
             raise OperationError({config_error_field(exc): str(exc)}) from None
         raise OperationError({"op": f"{type(op).__name__} is not an operation"})
+
+    def checkpoint(self) -> Checkpoint:
+        """The declared restrictions and the line's TSRs, to :meth:`roll_back` to when an
+        operation's record is refused by the store (not stored: not in force either)."""
+        return Checkpoint(dict(self.restrictions), self.tsrs.checkpoint())
+
+    def roll_back(self, checkpoint: Checkpoint) -> None:
+        """Back to ``checkpoint``: what the operations since set, cancelled or declared is
+        forgotten. (Target points they made the core work out were never sent; the next
+        tick works them out again from the restrictions in force.)"""
+        self.restrictions = dict(checkpoint.restrictions)
+        self.tsrs.roll_back(checkpoint.tsrs)
 
     def _set_tsr(self, op: SetTsr, actor: str, now_s: float) -> Outcome:
         session = op.session if op.session is not None else self.tsrs.next_session()

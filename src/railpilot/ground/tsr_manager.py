@@ -243,17 +243,17 @@ class TsrManager:
             raise ConfigError("tsr.session", tsr.session, "a session not restored twice")
         self._tsrs[tsr.session] = _Entry(tsr, LineTsrState(state), set(delivered_to))
 
-    def snapshot(self) -> dict[int, tuple[LineTsrState, frozenset[int]]]:
+    def checkpoint(self) -> dict[int, tuple[LineTsrState, frozenset[int]]]:
         """Each TSR's state and the trains it went to, to :meth:`roll_back` to if the
         operation that follows is not kept (the store refused it)."""
         return {s: (e.state, frozenset(e.delivered_to)) for s, e in self._tsrs.items()}
 
-    def roll_back(self, snapshot: Mapping[int, tuple[LineTsrState, frozenset[int]]]) -> None:
-        """Back to ``snapshot``: a TSR set since is forgotten, the others' states and trains
-        are as they were."""
-        for session in [s for s in self._tsrs if s not in snapshot]:
+    def roll_back(self, checkpoint: Mapping[int, tuple[LineTsrState, frozenset[int]]]) -> None:
+        """Back to ``checkpoint``: a TSR set since is forgotten, the others' states and
+        trains are as they were."""
+        for session in [s for s in self._tsrs if s not in checkpoint]:
             del self._tsrs[session]
-        for session, (state, trains) in snapshot.items():
+        for session, (state, trains) in checkpoint.items():
             entry = self._tsrs[session]
             entry.state = state
             entry.delivered_to = set(trains)

@@ -167,6 +167,8 @@ TSR_TRANSITIONS: Mapping[tuple[TsrState, TsrInput], TsrState] = {
 }
 
 _TSR_SENDS_SET = (_T.PENDING_SET, _T.RECONFIRMING)
+#: states in which a TSR delivery is (re)sent: its TsrSet, or its TsrCancel
+_TSR_SENDS = (*_TSR_SENDS_SET, _T.PENDING_CANCEL)
 
 
 # --- dispatch command / target point delivery ---------------------------------------------
@@ -444,10 +446,7 @@ class GroundEndpoint(Endpoint):
         # asked after every step of every connection: one pass, no lists
         earliest = self._next_time_check_s
         for tsr in record.tsrs.values():
-            state = tsr.state
-            if (
-                state in _TSR_SENDS_SET or state is TsrState.PENDING_CANCEL
-            ) and tsr.next_send_s < earliest:
+            if tsr.state in _TSR_SENDS and tsr.next_send_s < earliest:
                 earliest = tsr.next_send_s
         for book in record.unacknowledged.values():
             for delivery in book.values():

@@ -231,14 +231,12 @@ class DispatchHost:
             self.sync()
             return {**self.server.status(), "dispatch": self.dispatch.status(now)}
         self._flush()  # every train where it last said it was
-        restrictions = dict(self.dispatch.restrictions)
-        tsrs = self.dispatch.tsrs.snapshot()
+        checkpoint = self.dispatch.checkpoint()
         outcome = self.dispatch.execute(operation, actor, now)
         try:
             self._record(operation, outcome, actor, now)
         except OperationError:  # not in the store: not in force either, nothing sent
-            self.dispatch.restrictions = restrictions
-            self.dispatch.tsrs.roll_back(tsrs)
+            self.dispatch.roll_back(checkpoint)
             raise
         return outcome
 

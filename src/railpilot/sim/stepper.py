@@ -63,7 +63,7 @@ class Stepper:
         # and most asks fall within the step already run
         self._dt = self._inputs.sim.dt
         #: steps the run has (the end of its time, ``sim.duration_s``)
-        self.n_steps = self._inputs.sim.n_steps
+        self.n_steps = n
 
     @property
     def step(self) -> int:
@@ -159,7 +159,7 @@ class Stepper:
                 "ato.reference", "time", "'distance' to replace the reference mid-run"
             )
         delay, lag = ato_brake_model(self.scenario)
-        table = distance_table(profile, self._inputs.sim.dt, delay + lag)
+        table = distance_table(profile, self._dt, delay + lag)
         self._inputs = self._inputs._replace(reference=reference._replace(by_distance=table))
         ato = self._inputs.ato.p.copy()
         ato[A_STOP_M] = profile.stop_m
