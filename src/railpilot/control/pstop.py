@@ -62,6 +62,7 @@ from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_limits
 from railpilot.control.qsmc import _actuator_advance, _actuator_apply, _actuator_factors, _check
+from railpilot.interp import interp_at
 
 # params layout
 (
@@ -143,7 +144,7 @@ def _model_resistance(params: np.ndarray, n_line: int, x: float, v: float) -> fl
     """The controller's model of the resistance [m/s^2] at ``x`` [m] and ``v`` [m/s]."""
     r = params[P_DAVIS0] + v * (params[P_DAVIS1] + v * params[P_DAVIS2])
     if n_line > 0:
-        r += np.interp(x, params[N_PARAMS : N_PARAMS + n_line], params[N_PARAMS + n_line :])
+        r += interp_at(x, params[N_PARAMS : N_PARAMS + n_line], params[N_PARAMS + n_line :])
     return r
 
 

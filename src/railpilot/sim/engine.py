@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from railpilot.interp import interp_at
 from railpilot.sim.layout import (
     A_A0,
     A_A1,
@@ -315,7 +316,7 @@ def run_kernel(
         if moving:
             # speed error against what the ATO tracks: the curve at the true position
             # for a distance-based reference, the curve at time t otherwise
-            v_goal = np.interp(x, dist_ref[0], dist_ref[1]) if by_distance else ref_v[k]
+            v_goal = interp_at(x, dist_ref[0], dist_ref[1]) if by_distance else ref_v[k]
             verr = v - v_goal
             if abs(verr) > max_verr:
                 max_verr = abs(verr)
@@ -343,8 +344,8 @@ def run_kernel(
             if by_distance:
                 # re-planned on distance to go: where the train is, not where it was due
                 rx = x_odo
-                rv = np.interp(x_odo, dist_ref[0], dist_ref[1])
-                raff = np.interp(x_odo, dist_ref[0], dist_ref[2])
+                rv = interp_at(x_odo, dist_ref[0], dist_ref[1])
+                raff = interp_at(x_odo, dist_ref[0], dist_ref[2])
             else:
                 rx = ref_x[k]
                 rv = ref_v[k]

@@ -160,11 +160,20 @@ class Stepper:
             )
         delay, lag = ato_brake_model(self.scenario)
         table = distance_table(profile, self._dt, delay + lag)
-        self._inputs = self._inputs._replace(reference=reference._replace(by_distance=table))
         ato = self._inputs.ato.p.copy()
         ato[A_STOP_M] = profile.stop_m
-        self._inputs = self._inputs._replace(ato=self._inputs.ato._replace(p=ato))
-        self._compiled = None  # the new table's type is looked up again
+        before = (reference.by_distance, self._inputs.ato.p)
+        self._inputs = self._inputs._replace(
+            reference=reference._replace(by_distance=table),
+            ato=self._inputs.ato._replace(p=ato),
+        )
+        # The compiled entry serves on while the new arrays have the types of the old (they
+        # do: a line run replaces a train's reference at every change of what it knows, and
+        # looking the types of all the arguments up again costs about half a millisecond)
+        if any(
+            numba.typeof(a) != numba.typeof(b) for a, b in zip((table, ato), before, strict=True)
+        ):
+            self._compiled = None
 
     def result(self) -> SimResult:
         """The run so far as one result (what :func:`simulate` returns for a whole run)."""
