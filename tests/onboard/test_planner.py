@@ -16,6 +16,10 @@ from railpilot.onboard.drive import heavy_haul_loaded
 from railpilot.onboard.planner import (
     TIME_TOLERANCE_S,
     DrivingTrain,
+    _envelope,
+    _evaluate,
+    _forward,
+    _forward_time,
     fastest,
     linear_margin,
     plan,
@@ -252,3 +256,19 @@ def test_a_planning_brake_weaker_than_a_descent_still_gives_a_plan():
     assert curve.met
     assert np.all(curve.speed_mps[1:-1] > 0.0)
     assert np.all(curve.speed_mps <= sec.ceiling_mps + 1e-12)
+
+
+@pytest.mark.parametrize("name", SECTIONS)
+def test_the_search_times_a_profile_as_evaluating_it_does(name):
+    # the search for v1 asks _forward_time for the running time alone; what it finds must
+    # be what the whole profile, evaluated, takes, to the bit (else the plans would change)
+    sec = SECTIONS[name]
+    q = DRIVE.params()
+    top = float(sec.ceiling_mps.max())
+    for vb in (np.inf, 0.5 * top, 0.0):
+        for v1 in np.linspace(0.2, 1.3, 12) * top:
+            vf = DRIVE.coast_to_brake_speed_mps(v1)
+            env = _envelope(q, sec.line_w, sec.ceiling_mps, vf, vb, sec.dx_m)
+            profile = _forward(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
+            time = _forward_time(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
+            assert time == _evaluate(q, sec.line_w, profile, sec.dx_m)[0]
