@@ -212,19 +212,10 @@ def _envelope(
 
 
 @njit(cache=True, inline="always")
-def _forward_next(
-    q: np.ndarray,
-    line_w: np.ndarray,
-    ceiling: np.ndarray,
-    envelope: np.ndarray,
-    v1: float,
-    dx: float,
-    i: int,
-    speed: float,
-) -> float:
-    """The speed at grid point ``i + 1`` of the forward pass from ``speed`` at ``i``."""
-    cruise = min(v1, ceiling[i + 1])
-    w = 0.5 * (line_w[i] + line_w[i + 1])
+def _forward_step(q: np.ndarray, speed: float, cruise: float, w: float, dx: float) -> float:
+    """The forward pass's speed [m/s] one grid step ``dx`` [m] on from ``speed`` [m/s],
+    towards ``cruise`` [m/s] on the mean line resistance ``w`` [N/kN], before the envelope
+    bounds it."""
     coast = _coast_decel(q, speed, w)
     sq = speed * speed - 2.0 * dx * coast
     coasting = math.sqrt(sq) if sq > 0.0 else 0.0
@@ -235,12 +226,10 @@ def _forward_next(
         regen = regen_force_max(speed, q[Q_REGEN_F], q[Q_REGEN_P], q[Q_REGEN_FADE])
         sq = speed * speed - 2.0 * dx * (coast + regen / q[Q_MEFF])
         braked = math.sqrt(sq) if sq > 0.0 else 0.0
-        nxt = min(coasting, max(cruise, braked))
-    else:
-        trac = traction_force_max(speed, q[Q_TRAC_F], q[Q_TRAC_P], q[Q_TRAC_VMAX])
-        sq = speed * speed + 2.0 * dx * (trac / q[Q_MEFF] - coast)
-        nxt = min(cruise, math.sqrt(sq) if sq > 0.0 else 0.0)
-    return min(envelope[i + 1], nxt)
+        return min(coasting, max(cruise, braked))
+    trac = traction_force_max(speed, q[Q_TRAC_F], q[Q_TRAC_P], q[Q_TRAC_VMAX])
+    sq = speed * speed + 2.0 * dx * (trac / q[Q_MEFF] - coast)
+    return min(cruise, math.sqrt(sq) if sq > 0.0 else 0.0)
 
 
 @njit(cache=True)
@@ -259,7 +248,8 @@ def _forward(
     v = np.empty(n)
     v[0] = envelope[0]
     for i in range(n - 1):
-        v[i + 1] = _forward_next(q, line_w, ceiling, envelope, v1, dx, i, v[i])
+        w = 0.5 * (line_w[i] + line_w[i + 1])
+        v[i + 1] = min(envelope[i + 1], _forward_step(q, v[i], min(v1, ceiling[i + 1]), w, dx))
     return v
 
 
@@ -278,7 +268,8 @@ def _forward_time(
     time = 0.0
     speed = envelope[0]
     for i in range(envelope.shape[0] - 1):
-        nxt = _forward_next(q, line_w, ceiling, envelope, v1, dx, i, speed)
+        w = 0.5 * (line_w[i] + line_w[i + 1])
+        nxt = min(envelope[i + 1], _forward_step(q, speed, min(v1, ceiling[i + 1]), w, dx))
         mean = 0.5 * (speed + nxt)
         speed = nxt
         if mean <= 0.0:

@@ -19,6 +19,7 @@ import numpy as np
 from numba import njit
 
 from railpilot.errors import ConfigError
+from railpilot.interp import interp_at
 from railpilot.link.messages import PlannedCurve
 from railpilot.onboard.planner import PlannedCurve as Plan
 
@@ -36,9 +37,9 @@ def remaining_time_s(plan: Plan, position_s_m: float) -> float:
 @njit(cache=True)
 def _remaining_s(position_s_m: float, s_m: np.ndarray, elapsed: np.ndarray) -> float:
     # Compiled: every train asks once or twice a second, and np.interp called from Python
-    # on one point costs microseconds (benchmarks/line_speed.py); Numba's np.interp gives
-    # NumPy's results to the bit (tests/onboard/test_report.py).
-    return max(0.0, elapsed[-1] - np.interp(position_s_m, s_m, elapsed))
+    # on one point costs microseconds (benchmarks/line_speed.py); interp_at gives NumPy's
+    # results to the bit (tests/onboard/test_report.py, tests/test_interp.py).
+    return max(0.0, elapsed[-1] - interp_at(position_s_m, s_m, elapsed))
 
 
 @dataclass
