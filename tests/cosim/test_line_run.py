@@ -254,3 +254,19 @@ def test_a_replan_in_the_last_centimetres_of_a_stop_leaves_the_stop_to_finish():
     driver.at(t + 60.0)
     assert len(driver.sections) == 1
     assert driver.sections[0].arrival_s <= t + 60.0
+
+
+def test_a_radio_outage_is_timed_from_the_start_of_the_run():
+    """A scenario's outage is a window from the start of the run (docs/cosim.md), while
+    the link's clock counts from the epoch: it must still take the radio down then (it
+    silently never did), fail the links of the trains powered on, and let them back."""
+    channel = {"outages": [{"start_s": 600.0, "end_s": 780.0}]}
+    result = run_line(scenario_from_mapping(BASE | {"channel": channel}), until_s=1200.0)
+    link = result.link
+    assert link["channel"]["lost_outage"] > 0
+    assert link["channel"]["lost_random"] == link["channel"]["lost_dead_zone"] == 0
+    # trains 101 (powered on at 0 s) and 102 (at 540 s) were on the radio at 600 s
+    assert link["link_failures"] == 2
+    assert link["connects"] == 2 + 2 + 1  # the first two again after it, 103 at 1080 s
+    kpis = result.kpis()
+    assert kpis["tsr_violations"] == kpis["target_points_passed"] == 0

@@ -173,8 +173,8 @@ def test_a_train_that_leaves_with_its_link_down_deregisters_when_it_is_back() ->
     # Stopped at its destination during a radio outage: it cannot say it has left. Without
     # a deregistration the ground keeps it where it last reported, for ever (a block held
     # against the trains behind), so it says so as soon as it has registered again.
-    start = 1_800_000_000.0  # the outage is in the link's epoch time
-    channel = ChannelModel(outages=(Outage(start + 20.0, start + 200.0),))
+    start = 1_800_000_000.0
+    channel = ChannelModel(outages=(Outage(20.0, 200.0),))  # from the start of the run
     mover = Trajectory(start_m=100_000.0, speed_mps=0.0)
     train = SimTrain(config(30001), mover)
     sim = LinkSim(LINE, [train], channel, loadtest_keys(0, IDS), start_s=start)

@@ -176,8 +176,13 @@ class RadioChannel:
     """One train's radio link to the ground (module docstring): decides, per packet,
     whether and when it arrives."""
 
-    def __init__(self, model: ChannelModel, seed: int, train_id: int) -> None:
+    def __init__(
+        self, model: ChannelModel, seed: int, train_id: int, origin_s: float = 0.0
+    ) -> None:
         self.model = model
+        #: the start of the run on the clock the times are given on [s]: outages are
+        #: windows from the start of the run, the link's clock counts from the epoch
+        self.origin_s = origin_s
         # A string seed is hashed the same way on every platform and Python version.
         self._rng = random.Random(f"railpilot-channel:{seed}:{train_id}")
         self._mu = (
@@ -190,13 +195,14 @@ class RadioChannel:
         self.counters = ChannelCounters()
 
     def up(self, now_s: float, position_m: float | None) -> bool:
-        """Whether the radio is up for the train at ``position_m`` at ``now_s``."""
-        return self.model.covered(position_m, now_s) is None
+        """Whether the radio is up for the train at ``position_m`` at ``now_s`` [s, the
+        clock ``origin_s`` is on]."""
+        return self.model.covered(position_m, now_s - self.origin_s) is None
 
     def transmit(self, direction: str, now_s: float, position_m: float | None) -> float | None:
         """A packet sent ``direction`` ("up": train to ground, "down": ground to train) at
-        ``now_s`` [s] by or to a train whose head is at ``position_m`` [m]: its arrival
-        time [s], or None if it is lost."""
+        ``now_s`` [s, the clock ``origin_s`` is on] by or to a train whose head is at
+        ``position_m`` [m]: its arrival time [s, the same clock], or None if it is lost."""
         self.counters.packets += 1
         # Draw both numbers for every packet, so one cause of loss does not shift the
         # draws of the packets after it.
@@ -206,7 +212,7 @@ class RadioChannel:
             if self._mu is None
             else self._rng.lognormvariate(self._mu, self.model.latency_sigma)
         )
-        cause = self.model.covered(position_m, now_s)
+        cause = self.model.covered(position_m, now_s - self.origin_s)
         if cause is None and lost_draw < self.model.loss:
             cause = "random"
         if cause is not None:

@@ -143,7 +143,7 @@ class LinkSim:
     trains
         The trains; ids must be unique and have keys in ``keys``.
     channel
-        What the radio does to packets.
+        What the radio does to packets (its outages in seconds from ``start_s``).
     keys
         The per-train keys (HMAC-SHA256 on every frame, as on the live link).
     seed
@@ -201,7 +201,7 @@ class LinkSim:
         self.restarts: list[dict[str, Any]] = []
         self.trains = {t.config.train_id: t for t in trains}
         self.onboard = {i: OnboardEndpoint(t.config, keys) for i, t in self.trains.items()}
-        self.channels = {i: RadioChannel(channel, seed, i) for i in self.trains}
+        self.channels = {i: RadioChannel(channel, seed, i, self.start_s) for i in self.trains}
         self._jitter = {i: random.Random(f"railpilot-reconnect:{seed}:{i}") for i in self.trains}
         self.stats = {i: TrainLinkStats() for i in self.trains}
         #: train id -> (position, speed) of its onboard's running info (:meth:`_refresh`)
