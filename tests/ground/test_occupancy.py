@@ -292,3 +292,44 @@ def test_a_stale_report_never_occupies_less_than_a_fresh_one(head, direction, le
     later = occupancy(TrainReport(1, head, direction, length, 0.0), now_s=age)
     assert set(fresh.train(1).block_ids) <= set(later.train(1).block_ids)
     assert later.train(1).known == (age <= 4.0)
+
+
+reports = st.lists(
+    st.tuples(positions, directions, lengths, st.floats(0.0, 20.0)),
+    min_size=1,
+    max_size=8,
+)
+
+
+@settings(max_examples=200, deadline=None)
+@given(rows=reports)
+def test_a_computed_occupancy_passes_every_check_of_its_classes(rows):
+    """compute_occupancy builds its results without running their checks again (the ground
+    does it every second): each must still be what the checked constructors make of the
+    same fields, look-ups included."""
+    trains = [TrainReport(100 - i, h, d, n, 20.0 - age) for i, (h, d, n, age) in enumerate(rows)]
+    computed = compute_occupancy(LINE, trains, 20.0)
+    checked = Occupancy(
+        computed.line_name,
+        computed.now_s,
+        tuple(
+            TrainOccupancy(
+                t.train_id,
+                t.direction,
+                t.head_m,
+                t.tail_m,
+                t.block_ids,
+                t.head_block_id,
+                t.known,
+                t.reported_s,
+            )
+            for t in reversed(computed.trains)
+        ),
+    )
+    assert computed == checked
+    assert computed.trains == checked.trains  # sorted by id, as the checked one sorts
+    assert [type(t.block_ids) for t in computed.trains] == [tuple] * len(rows)
+    assert dict(computed.by_block) == dict(checked.by_block)
+    assert list(computed.by_block) == list(checked.by_block)  # block ids in order
+    for t in checked.trains:
+        assert computed.train(t.train_id) == t

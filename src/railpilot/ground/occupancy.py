@@ -37,6 +37,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from types import MappingProxyType
+from typing import Any
 
 from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import BlockSection, RailLine
@@ -222,6 +223,15 @@ class TrainOccupancy:
         if not isinstance(self.known, bool):
             raise ConfigError("occupancy.known", self.known, "True or False")
 
+    @classmethod
+    def _derived(cls, **fields: Any) -> TrainOccupancy:
+        """The occupancy :func:`compute_occupancy` worked out from a report it checked:
+        every field holds by construction, so the checks of ``__post_init__`` are skipped
+        (the ground and the trackside build one per train every second)."""
+        train = object.__new__(cls)
+        train.__dict__.update(fields)
+        return train
+
     def is_ahead_of(self, other: TrainOccupancy) -> bool:
         """Whether this train runs in ``other``'s direction and its head is not behind
         ``other``'s head (equal heads count as ahead, to be on the safe side)."""
@@ -257,18 +267,16 @@ class Occupancy:
                     f"occupancy.trains[{i}].train_id", train.train_id, "a train id listed once"
                 )
             seen.add(train.train_id)
-        trains = tuple(sorted(trains, key=lambda t: t.train_id))
-        by_block: dict[str, list[int]] = {}
-        for train in trains:
-            for block_id in train.block_ids:
-                by_block.setdefault(block_id, []).append(train.train_id)
-        object.__setattr__(self, "trains", trains)
-        object.__setattr__(self, "_by_id", {t.train_id: t for t in trains})
-        object.__setattr__(
-            self,
-            "_by_block",
-            MappingProxyType({b: tuple(ids) for b, ids in sorted(by_block.items())}),
-        )
+        self.__dict__.update(_indexed(trains))
+
+    @classmethod
+    def _derived(cls, line_name: str, now_s: float, trains: list[TrainOccupancy]) -> Occupancy:
+        """The occupancy :func:`compute_occupancy` found: its trains (ids unique) were
+        derived from reports it checked, so the checks of ``__post_init__`` are skipped
+        (the ground and the trackside build it every second)."""
+        occupancy = object.__new__(cls)
+        occupancy.__dict__.update(line_name=line_name, now_s=now_s, **_indexed(trains))
+        return occupancy
 
     @property
     def by_block(self) -> Mapping[str, tuple[int, ...]]:
@@ -296,6 +304,21 @@ class Occupancy:
         return block_id not in self._by_block
 
 
+def _indexed(trains: Iterable[TrainOccupancy]) -> dict[str, Any]:
+    """An :class:`Occupancy`'s fields that follow from its trains: the trains sorted by
+    id, and the look-ups by id and by block (each block's ids ascending)."""
+    ordered = tuple(sorted(trains, key=lambda t: t.train_id))
+    by_block: dict[str, list[int]] = {}
+    for train in ordered:
+        for block_id in train.block_ids:
+            by_block.setdefault(block_id, []).append(train.train_id)
+    return {
+        "trains": ordered,
+        "_by_id": {t.train_id: t for t in ordered},
+        "_by_block": MappingProxyType({b: tuple(ids) for b, ids in sorted(by_block.items())}),
+    }
+
+
 # ---------------------------------------------------------------------------- functions
 
 
@@ -316,14 +339,23 @@ def occupied_blocks(
     ``head_m`` [m] the head's km post on the line, ``length_m`` [m] > 0. The last section
     returned is the head's (``line.block_section_at(head_m, direction)``).
     """
-    sign = direction_sign(direction)
+    direction = check_travel_direction(direction)
     _check_on_line(line, head_m, "head_m")
     if not is_finite_number(length_m) or length_m <= 0:
         raise ConfigError("length_m", length_m, "a train length > 0 [m]")
+    return _occupied(line, head_m, direction, length_m)[0]
+
+
+def _occupied(
+    line: RailLine, head_m: float, direction: TravelDirection, length_m: float
+) -> tuple[tuple[BlockSection, ...], float]:
+    """:func:`occupied_blocks` of a checked train, and its tail's km post [m] (cut at the
+    line's end)."""
+    sign = 1.0 if direction is UP else -1.0
     tail_m = min(max(head_m - sign * length_m, line.start_m), line.end_m)
-    low, high = min(head_m, tail_m), max(head_m, tail_m)
+    low, high = (head_m, tail_m) if head_m <= tail_m else (tail_m, head_m)
     # Closed spans on both sides: a touch at a boundary counts (module docstring).
-    return line.block_sections_between(low, high, direction)
+    return line.block_sections_between(low, high, direction), tail_m
 
 
 def compute_occupancy(
@@ -346,38 +378,49 @@ def compute_occupancy(
     for i, report in enumerate(reports):
         if not isinstance(report, TrainReport):
             raise ConfigError(f"reports[{i}]", report, "a TrainReport")
-        label = f"reports[{i}] (train {report.train_id})"
         if report.train_id in seen:
             raise ConfigError(
-                f"{label}.train_id", report.train_id, "a train not reported before (one each)"
+                f"{_label(i, report)}.train_id",
+                report.train_id,
+                "a train not reported before (one each)",
             )
         seen.add(report.train_id)
         if report.reported_s > now_s:
             raise ConfigError(
-                f"{label}.reported_s", report.reported_s, f"a time at or before now_s = {now_s}"
+                f"{_label(i, report)}.reported_s",
+                report.reported_s,
+                f"a time at or before now_s = {now_s}",
             )
-        _check_on_line(line, report.head_m, f"{label}.head_m")
-        sections = occupied_blocks(line, report.head_m, report.direction, report.length_m)
+        head_m = report.head_m
+        if not line.start_m <= head_m <= line.end_m:  # finite: a TrainReport's is
+            _check_on_line(line, head_m, f"{_label(i, report)}.head_m")
+        # the report's direction and length were checked when it was made
+        direction = report.direction
+        sections, tail_m = _occupied(line, head_m, direction, report.length_m)
         known = now_s - report.reported_s <= cfg.validity_s
-        ids = [s.id for s in sections]
+        ids = tuple(s.id for s in sections)
         if not known:
-            order = line.block_sections_for(report.direction)
-            head_index = line.block_index(sections[-1].id, report.direction)
+            order = line.block_sections_for(direction)
+            head_index = line.block_index(sections[-1].id, direction)
             assert head_index is not None  # the section came from this direction
             extra = order[head_index + 1 : head_index + 1 + cfg.stale_blocks_ahead]
-            ids.extend(s.id for s in extra)
-        sign = direction_sign(report.direction)
-        tail_m = min(max(report.head_m - sign * report.length_m, line.start_m), line.end_m)
+            ids += tuple(s.id for s in extra)
         trains.append(
-            TrainOccupancy(
+            TrainOccupancy._derived(
                 train_id=report.train_id,
-                direction=report.direction,
-                head_m=float(report.head_m),
+                direction=direction,
+                head_m=float(head_m),
                 tail_m=float(tail_m),
-                block_ids=tuple(ids),
+                block_ids=ids,
                 head_block_id=sections[-1].id,
                 known=known,
                 reported_s=float(report.reported_s),
             )
         )
-    return Occupancy(line.name, float(now_s), tuple(trains))
+    return Occupancy._derived(line.name, float(now_s), trains)
+
+
+def _label(i: int, report: TrainReport) -> str:
+    """How an error names the ``i``-th report (made only for an error: the ground
+    computes the occupancy every second)."""
+    return f"reports[{i}] (train {report.train_id})"
