@@ -37,7 +37,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from functools import lru_cache
 from types import MappingProxyType
-from typing import Any
+from typing import Any, TypeVar
 
 from railpilot.errors import ConfigError, is_finite_number
 from railpilot.line.model import BlockSection, RailLine
@@ -51,6 +51,8 @@ MAX_TRAIN_LENGTH_M = 10_000.0
 #: Default validity of a report [s]: the link declares running info timed out after more
 #: than 3 missed cycles of 1 s (LinkTimers defaults), so 4 s.
 DEFAULT_VALIDITY_S = 4.0
+
+_T = TypeVar("_T")
 
 
 def check_train_id(value: object, field: str = "train_id") -> int:
@@ -223,15 +225,6 @@ class TrainOccupancy:
         if not isinstance(self.known, bool):
             raise ConfigError("occupancy.known", self.known, "True or False")
 
-    @classmethod
-    def _derived(cls, **fields: Any) -> TrainOccupancy:
-        """The occupancy :func:`compute_occupancy` worked out from a report it checked:
-        every field holds by construction, so the checks of ``__post_init__`` are skipped
-        (the ground and the trackside build one per train every second)."""
-        train = object.__new__(cls)
-        train.__dict__.update(fields)
-        return train
-
     def is_ahead_of(self, other: TrainOccupancy) -> bool:
         """Whether this train runs in ``other``'s direction and its head is not behind
         ``other``'s head (equal heads count as ahead, to be on the safe side)."""
@@ -269,15 +262,6 @@ class Occupancy:
             seen.add(train.train_id)
         self.__dict__.update(_indexed(trains))
 
-    @classmethod
-    def _derived(cls, line_name: str, now_s: float, trains: list[TrainOccupancy]) -> Occupancy:
-        """The occupancy :func:`compute_occupancy` found: its trains (ids unique) were
-        derived from reports it checked, so the checks of ``__post_init__`` are skipped
-        (the ground and the trackside build it every second)."""
-        occupancy = object.__new__(cls)
-        occupancy.__dict__.update(line_name=line_name, now_s=now_s, **_indexed(trains))
-        return occupancy
-
     @property
     def by_block(self) -> Mapping[str, tuple[int, ...]]:
         """Occupied block id -> ids of the trains in it (ascending); read-only."""
@@ -302,6 +286,16 @@ class Occupancy:
     def is_free(self, block_id: str) -> bool:
         """Whether no train occupies ``block_id``."""
         return block_id not in self._by_block
+
+
+def _derived(cls: type[_T], **fields: Any) -> _T:
+    """An instance of the frozen dataclass ``cls`` with ``fields``, without the checks of
+    its ``__post_init__``: for what :func:`compute_occupancy` derived from reports it
+    checked, where every field holds by construction (the ground and the trackside build
+    an occupancy of every train every second)."""
+    instance = object.__new__(cls)
+    instance.__dict__.update(fields)
+    return instance
 
 
 def _indexed(trains: Iterable[TrainOccupancy]) -> dict[str, Any]:
@@ -351,7 +345,7 @@ def _occupied(
 ) -> tuple[tuple[BlockSection, ...], float]:
     """:func:`occupied_blocks` of a checked train, and its tail's km post [m] (cut at the
     line's end)."""
-    sign = 1.0 if direction is UP else -1.0
+    sign = direction_sign(direction)
     tail_m = min(max(head_m - sign * length_m, line.start_m), line.end_m)
     low, high = (head_m, tail_m) if head_m <= tail_m else (tail_m, head_m)
     # Closed spans on both sides: a touch at a boundary counts (module docstring).
@@ -406,7 +400,8 @@ def compute_occupancy(
             extra = order[head_index + 1 : head_index + 1 + cfg.stale_blocks_ahead]
             ids += tuple(s.id for s in extra)
         trains.append(
-            TrainOccupancy._derived(
+            _derived(
+                TrainOccupancy,
                 train_id=report.train_id,
                 direction=direction,
                 head_m=float(head_m),
@@ -417,7 +412,7 @@ def compute_occupancy(
                 reported_s=float(report.reported_s),
             )
         )
-    return Occupancy._derived(line.name, float(now_s), trains)
+    return _derived(Occupancy, line_name=line.name, now_s=float(now_s), **_indexed(trains))
 
 
 def _label(i: int, report: TrainReport) -> str:
