@@ -1,9 +1,10 @@
 """The line live (cosim/live.py): the ground a server process, each train its own process,
 over TCP on loopback, on a clock 60 times the wall's; and the fixes the live run found.
 
-The live run of examples/line_live_short.toml is compared with its co-simulation (the
-file's radio is perfect, as loopback TCP is). They differ where the transports differ:
-the link's latencies are the host's (a millisecond of wall clock is 60 ms of the run's),
+The live run of examples/line_live_short.toml is compared with its co-simulation (its
+radio, a dead zone and the default latency, stands live between each train process and
+the ground's server). They differ where the transports differ: live, the host's latency
+adds to the channel's (a millisecond of wall clock is 60 ms of the run's),
 the trackside sees each train's report of the last whole second instead of every train
 at one instant, and events land when the loop gets to them. The tolerance:
 
@@ -96,6 +97,20 @@ def test_live_run_went_over_the_real_link_on_the_run_s_clock(runs) -> None:  # t
     link = live["link"]
     assert link["onboard"]["frames_sent"] > 0 and link["ground"]["frames_received"] > 0
     assert live["live"]["speedup"] == SPEEDUP
+
+
+def test_the_scenario_s_radio_stood_between_the_trains_and_the_ground_live(runs) -> None:  # type: ignore[no-untyped-def]
+    live, cosim, _ = runs
+    for kpis in (live, cosim):
+        radio = kpis["link"]["channel"]
+        # every train crosses the dead zone at km 18-20: what was sent there was lost
+        assert radio["lost_dead_zone"] > 0
+        assert radio["lost_random"] == radio["lost_outage"] == 0
+        assert radio["delivered"] + radio["lost_dead_zone"] == radio["packets"]
+    # the link failed there and the trains came back (at least one failure, and more
+    # connections than trains)
+    assert live["link"]["link_failures"] >= 1
+    assert live["link"]["connects"] > len(live["trains"])
 
 
 def test_the_dashboard_was_photographed_during_the_live_run(runs) -> None:  # type: ignore[no-untyped-def]

@@ -24,6 +24,7 @@ from railpilot.link import (
     TsrSet,
 )
 from railpilot.net import FaultProxy, GroundServer, OnboardClient, ProxyOptions, Trajectory
+from railpilot.net.proxy import PacketRadio
 
 T = TypeVar("T")
 GROUND_ID = 1
@@ -143,15 +144,17 @@ async def rig(
     proxy: ProxyOptions | None = None,
     timers: LinkTimers = FAST,
     start: bool = True,
+    radio: PacketRadio | None = None,
 ) -> AsyncIterator[Rig]:
-    """Server (+ proxy) on ephemeral loopback ports and trains connected to it."""
+    """Server (+ proxy, with its options or its radio) on ephemeral loopback ports and
+    trains connected to it."""
     ids = train_ids or (TRAIN_ID,)
     keys = make_keys(*ids)
     server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=timers), keys)
     _, port = await server.start()
     fault = None
-    if proxy is not None:
-        fault = FaultProxy("127.0.0.1", port, proxy)
+    if proxy is not None or radio is not None:
+        fault = FaultProxy("127.0.0.1", port, proxy, radio=radio)
         _, port = await fault.start()
     r = Rig(server, keys, timers, port, fault)
     server.add_listener(lambda train, event, now: r.ground_events.append((train, event)))

@@ -53,9 +53,14 @@ def test_findings_name_a_train_outside_the_tolerance(kpis) -> None:  # type: ign
     assert "no browser here" in apart[-1]
 
 
-def test_the_link_table_has_both_sides(kpis) -> None:  # type: ignore[no-untyped-def]
+def test_the_link_table_has_both_sides_and_the_radio_of_both_runs(kpis) -> None:  # type: ignore[no-untyped-def]
     kpis = copy.deepcopy(kpis)
-    table = line_live.link_table(kpis)
+    other = copy.deepcopy(kpis)
+    other["link"]["channel"]["lost_dead_zone"] = 12345
+    table = line_live.link_table(kpis, other)
     sides = {row[0]: row[1:] for row in table.rows}
     assert sides["onboard"][0] == kpis["link"]["onboard"]["frames_sent"]
     assert sides["ground"][4] == kpis["link"]["ground"]["link_failures"]
+    live, cosim = table.note.split("co-simulated:")
+    assert f"{kpis['link']['channel']['packets']} packets" in live
+    assert "dead zone 12345" in cosim and "dead zone 12345" not in live

@@ -24,7 +24,7 @@ from __future__ import annotations
 
 import math
 import random
-from collections.abc import Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -170,6 +170,18 @@ class ChannelCounters:
 
     def as_dict(self) -> dict[str, Any]:
         return {"packets": self.packets, "delivered": self.delivered, "lost": dict(self.lost)}
+
+
+def channel_totals(counters: Iterable[ChannelCounters]) -> dict[str, int]:
+    """The channels' counts summed, as a run's link statistics give them: ``packets``,
+    ``delivered`` and ``lost_<cause>`` for each cause that lost one."""
+    totals: dict[str, int] = {}
+    for c in counters:
+        totals["packets"] = totals.get("packets", 0) + c.packets
+        totals["delivered"] = totals.get("delivered", 0) + c.delivered
+        for cause, n in c.lost.items():
+            totals[f"lost_{cause}"] = totals.get(f"lost_{cause}", 0) + n
+    return totals
 
 
 class RadioChannel:

@@ -83,7 +83,7 @@ from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.net.client import Mover, Trajectory
 from railpilot.net.server import counters_dict
 
-from .channel import ChannelModel, RadioChannel
+from .channel import ChannelModel, RadioChannel, channel_totals
 
 #: The dispatch core's tick [s], as on the live ground (net/dispatch_host.py TICK_S).
 TICK_S = 1.0
@@ -317,17 +317,10 @@ class LinkSim:
         by check (ground and onboard), and the channel's counts."""
         ground = counters_dict(c.ground.counters for c in self._connections.values())
         onboard = counters_dict([e.counters for e in self.onboard.values()])
-        packets = Counter[str]()
-        for channel in self.channels.values():
-            c = channel.counters
-            packets["packets"] += c.packets
-            packets["delivered"] += c.delivered
-            for cause, n in c.lost.items():
-                packets[f"lost_{cause}"] += n
         return {
             "ground": ground,
             "onboard": onboard,
-            "channel": dict(packets),
+            "channel": channel_totals(c.counters for c in self.channels.values()),
             "connects": sum(s.connects for s in self.stats.values()),
             "link_failures": sum(s.link_failures for s in self.stats.values()),
         }

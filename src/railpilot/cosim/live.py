@@ -23,11 +23,11 @@ with real parts where the co-simulation has simulated ones:
   tells it over the control wire (cosim/live_wire.py) where it truly is each whole
   second, and it answers with the train's cab signal.
 
-What differs from the co-simulation: the radio is loopback TCP (no loss, no dead zones, no
-outages: the scenario's ``[channel]`` is not applied; docs/line-run.md), and the link's
-latencies are the host's, scaled by ``speedup``. The KPIs are computed by the same code
-from the same kind of record, so the two runs of a scenario can be compared
-(tests/cosim/test_live.py states the tolerance).
+What differs from the co-simulation: the radio is loopback TCP with the scenario's
+``[channel]`` in front of it in each train's process (cosim/live_train.py), so the link's
+latencies are the channel's plus the host's, scaled by ``speedup`` (docs/line-run.md).
+The KPIs are computed by the same code from the same kind of record, so the two runs of
+a scenario can be compared (tests/cosim/test_live.py states the tolerance).
 """
 
 from __future__ import annotations
@@ -49,6 +49,7 @@ from railpilot.net.admin import AdminError, admin_request
 from railpilot.net.timers import LinkClock
 
 from . import live_ground, live_train
+from .channel import ChannelCounters, channel_totals
 from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult
 from .live_wire import MAX_LINE, receive, send
@@ -443,6 +444,7 @@ class _LiveRun:
         link = {
             "ground": ground_counters,
             "onboard": _sum_counts([r["onboard"] for r in results]),
+            "channel": channel_totals(ChannelCounters(**r["channel"]) for r in results),
             "connects": sum(r["connects"] for r in results),
             "link_failures": sum(r["link_failures"] for r in results),
         }

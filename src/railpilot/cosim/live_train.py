@@ -6,6 +6,12 @@ link (:class:`~railpilot.net.client.OnboardClient` over TCP to the ground's serv
 the run's clock. Over the control wire (cosim/live_wire.py) it tells the trackside where
 it truly is each whole second, and hears back its cab signal, a failure, the end.
 
+The scenario's radio (cosim/channel.py) stands between the onboard unit and the ground:
+the train's :class:`~railpilot.cosim.channel.RadioChannel`, seeded as the co-simulation
+seeds it, decides in a :class:`~railpilot.net.proxy.FaultProxy` in this process whether
+each packet is lost and how long it travels, from where the train is and the run's
+clock; and where it has no radio, the onboard's connection attempts fail.
+
 The simulation core compiles (numba) when it first runs; that is done before the process
 says it is ready, so the run's clock never waits for it.
 """
@@ -18,13 +24,16 @@ import dataclasses
 import logging
 import math
 from collections import Counter
+from collections.abc import Callable
 from dataclasses import dataclass
 
 from railpilot.link import DeregisterReason, Event, OnboardState, TsrApplied
 from railpilot.net.client import OnboardClient, first_of
+from railpilot.net.proxy import Direction, FaultProxy
 from railpilot.net.server import counters_dict
 from railpilot.net.timers import LinkClock
 
+from .channel import RadioChannel
 from .line_run import WATCH_S, line_keys, line_train
 from .live_wire import connect, receive, send
 from .scenario import load_scenario
@@ -42,6 +51,30 @@ class TrainArgs:
     scenario_path: str
     seed: int
     train_id: int
+
+
+class ChannelRadio:
+    """A train's :class:`RadioChannel` on its live link: what the proxy and the onboard
+    unit ask of the radio, answered on the run's ``clock`` from where the train's head is
+    (``position``, km post [m]: for a driven train, as far as it has been driven, as the
+    co-simulation's odometry gives it)."""
+
+    def __init__(
+        self, channel: RadioChannel, clock: LinkClock, position: Callable[[], float]
+    ) -> None:
+        self.channel = channel
+        self.clock = clock
+        self.position = position
+
+    def up(self) -> bool:
+        """Whether the train can reach the ground now (no dead zone, no outage)."""
+        return self.channel.up(self.clock(), self.position())
+
+    def packet_delay_s(self, direction: Direction) -> float | None:
+        """The packet sent now: how long it travels [s of wall clock], None if lost."""
+        now = self.clock()
+        arrival = self.channel.transmit(direction, now, self.position())
+        return None if arrival is None else self.clock.wall_s(arrival - now)
 
 
 def run(args: TrainArgs) -> None:
@@ -64,6 +97,11 @@ async def _main(args: TrainArgs) -> None:
         return
     clock = LinkClock(start["speedup"], epoch, start["wall_origin_s"])
     applied: Counter[int] = Counter()
+    # seeded as LinkSim seeds the train's channel; outages count from the run's start
+    channel = RadioChannel(scenario.channel, args.seed, args.train_id, epoch)
+    radio = ChannelRadio(channel, clock, lambda: driver.at_last()[0])
+    proxy = FaultProxy("127.0.0.1", start["link_port"], radio=radio)
+    _, radio_port = await proxy.start()
 
     def on_event(event: Event, now_s: float) -> None:
         if isinstance(event, TsrApplied):
@@ -74,11 +112,12 @@ async def _main(args: TrainArgs) -> None:
         config,
         line_keys(scenario, args.seed),
         "127.0.0.1",
-        start["link_port"],
+        radio_port,
         trajectory=driver,
         trajectory_start_s=epoch + driver.power_on_s,
         seed=args.seed * 100_003 + args.train_id,
         clock=clock,
+        radio_up=radio.up,
     )
     client.add_listener(on_event)
     client.leave_reason = DeregisterReason.LEAVING_MAIN_LINE
@@ -142,6 +181,7 @@ async def _main(args: TrainArgs) -> None:
         t += WATCH_S
     stop.set()
     await link
+    await proxy.stop()
     await send(
         writer,
         {
@@ -156,6 +196,7 @@ async def _main(args: TrainArgs) -> None:
             "connects": client.connects,
             "registrations": client.registrations,
             "link_failures": client.events_seen["LinkFailed"],
+            "channel": channel.counters.as_dict(),
             "active_tsrs": sorted(client.endpoint.active_tsrs),
         },
     )

@@ -150,6 +150,10 @@ class OnboardClient:
     clock
         The link's time (the host's own by default, a scaled one in a live line run); a
         ``scheduler`` given must run on it.
+    radio_up
+        Whether the train's radio can reach the ground now (a live line run's channel
+        model: a dead zone, an outage); while it cannot, a connection attempt fails at
+        once, as a modem without coverage fails it. None: always.
     """
 
     def __init__(
@@ -166,6 +170,7 @@ class OnboardClient:
         connect_timeout_s: float = 5.0,
         count_sent: bool = False,
         clock: LinkClock = WALL_CLOCK,
+        radio_up: Callable[[], bool] | None = None,
     ) -> None:
         if scheduler is not None and scheduler.clock is not clock:
             raise ConfigError("scheduler", scheduler.clock, f"a scheduler on the client's {clock}")
@@ -178,6 +183,7 @@ class OnboardClient:
         self.rng = random.Random(seed)
         self.scheduler = scheduler if scheduler is not None else TickScheduler(clock=clock)
         self.connect_timeout_s = connect_timeout_s
+        self.radio_up = radio_up
         self.scheduled_s: float | None = None
         self._transport: asyncio.Transport | None = None
         self._lost: asyncio.Event | None = None
@@ -262,6 +268,9 @@ class OnboardClient:
     async def _connect(self) -> bool:
         loop = asyncio.get_running_loop()
         self._lost = asyncio.Event()
+        if self.radio_up is not None and not self.radio_up():
+            kv(log, logging.INFO, "connect_failed", train=self.config.train_id, error="no radio")
+            return False
         try:
             async with asyncio.timeout(self.connect_timeout_s):
                 transport, _ = await loop.create_connection(

@@ -20,6 +20,11 @@ segments, and then re-stuffs and writes them:
 Bytes that are not part of a frame are dropped and counted (``garbage_bytes``). Every
 decision comes from a generator seeded with ``seed`` (one per connection and direction), so
 a run is repeatable up to TCP timing. The proxy counts everything it did.
+
+A :class:`PacketRadio` given to the proxy decides, besides, for each *packet* (the whole
+frames one read brought: what one endpoint wrote at one instant) whether it is lost and how
+long it travels: a live line run puts the scenario's radio channel there
+(cosim/live_train.py). Its delay adds to ``delay_ms``; order is kept.
 """
 
 from __future__ import annotations
@@ -31,7 +36,7 @@ import socket
 import time
 from collections import Counter, deque
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, Protocol
 
 from railpilot.link import FrameDecoder, FrameError, stuff
 from railpilot.link.errors import LinkConfigError
@@ -44,6 +49,14 @@ log = logging.getLogger("railpilot.net.proxy")
 Direction = Literal["up", "down"]
 #: How long a frame held for reordering waits for a successor before it is sent anyway [s].
 REORDER_HOLD_MAX_S = 0.5
+
+
+class PacketRadio(Protocol):
+    """What a radio does to a packet going ``direction`` ("up": client to upstream)."""
+
+    def packet_delay_s(self, direction: Direction) -> float | None:
+        """How long the packet sent now travels [s of wall clock]; None: it is lost."""
+        ...
 
 
 def _check_p(name: str, value: float) -> None:
@@ -111,15 +124,28 @@ class _Pipe:
         self._last_release_s = 0.0
         self._queue_timer: asyncio.TimerHandle | None = None
         self.closed = False
+        #: the radio's delay of the packet whose frames are being passed on [s]
+        self.radio_delay_s = 0.0
 
     def feed(self, data: bytes) -> None:
         before = self.decoder.bytes_discarded
+        frames = []
         for item in self.decoder.feed(data):
             if isinstance(item, FrameError):
                 self.stats["framing_errors"] += 1
                 continue
-            self._frame(item)
+            frames.append(item)
         self.stats["garbage_bytes"] += self.decoder.bytes_discarded - before
+        radio = self.proxy.radio
+        if radio is not None and frames:
+            self.stats["radio_packets"] += 1
+            delay_s = radio.packet_delay_s(self.direction)
+            if delay_s is None:
+                self.stats["radio_lost"] += len(frames)
+                return
+            self.radio_delay_s = delay_s
+        for frame in frames:
+            self._frame(frame)
 
     def close(self) -> None:
         self.closed = True
@@ -183,7 +209,9 @@ class _Pipe:
     def _emit(self, wire: bytes, delayed: bool) -> None:
         """Send now, or queue behind earlier delayed frames (a TCP stream keeps order)."""
         now = time.monotonic()
-        release = now + self.options.delay_ms / 1000.0 if delayed else now
+        release = now + self.radio_delay_s
+        if delayed:
+            release += self.options.delay_ms / 1000.0
         if delayed:
             self.stats["delayed"] += 1
         release = max(release, self._last_release_s)
@@ -304,9 +332,12 @@ class FaultProxy:
         *,
         host: str = "127.0.0.1",
         port: int = 0,
+        radio: PacketRadio | None = None,
     ) -> None:
         self.upstream = (upstream_host, upstream_port)
         self.options = options or ProxyOptions()
+        #: decides each packet's loss and travel time (module docstring); None: no radio
+        self.radio = radio
         self.host = host
         self.port = port
         self.stats: dict[Direction, Counter[str]] = {"up": Counter(), "down": Counter()}

@@ -1,7 +1,7 @@
 """The line live against its co-simulation (issue 12 item 2; docs/line-run.md "Live").
 
 ``examples/line_live_short.toml`` (two loaded trains six minutes apart and an empty one
-the other way, a TSR, a failure; an hour) is run twice: co-simulated
+the other way, a TSR, a failure, a radio dead zone; an hour) is run twice: co-simulated
 (:func:`railpilot.cosim.line_run.run_line`), then live (:func:`railpilot.cosim.live.run_live`:
 the ground a server process with its store, admin port and dashboard, each train its own
 process over TCP on loopback) on a clock :data:`SPEEDUP` times the wall's. Halfway through
@@ -68,7 +68,7 @@ def run(out_dir: Path) -> Reproduction:
         f"The line live: ground server and train processes over TCP at {SPEEDUP:g}x, "
         "against the co-simulation",
         payload,
-        [train_table(live, cosim, note), link_table(live)],
+        [train_table(live, cosim, note), link_table(live, cosim)],
         figures,
         findings(live, cosim, seen),
     )
@@ -114,7 +114,17 @@ def train_table(live: dict[str, Any], cosim: dict[str, Any], note: str) -> Table
     )
 
 
-def link_table(live: dict[str, Any]) -> Table:
+def _radio(link: dict[str, Any]) -> str:
+    channel = link["channel"]
+    lost = ", ".join(
+        f"{k.removeprefix('lost_').replace('_', ' ')} {v}"
+        for k, v in channel.items()
+        if k.startswith("lost_")
+    )
+    return f"{channel['packets']} packets, {channel['delivered']} delivered, lost: {lost}"
+
+
+def link_table(live: dict[str, Any], cosim: dict[str, Any]) -> Table:
     link = live["link"]
     rows = []
     for side in ("onboard", "ground"):
@@ -132,11 +142,12 @@ def link_table(live: dict[str, Any]) -> Table:
             ]
         )
     return Table(
-        "The live link (loopback TCP)",
+        "The live link (loopback TCP through the scenario's radio)",
         ["side", "frames sent", "received", "timeouts", "resends", "link failures", "rejected"],
         rows,
         f"{link['connects']} connections for {len(live['trains'])} trains; the ground's "
-        "counts are its last process's (a restart starts them again).",
+        "counts are its last process's (a restart starts them again). The radio, live: "
+        f"{_radio(link)}; co-simulated: {_radio(cosim['link'])}.",
     )
 
 
