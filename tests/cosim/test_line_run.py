@@ -9,6 +9,7 @@ of one station pair is ``railpilot drive``'s.
 from __future__ import annotations
 
 import math
+import pickle
 from pathlib import Path
 
 import numpy as np
@@ -104,6 +105,15 @@ def test_the_same_seed_gives_the_same_numbers(day, advised):
     assert first == second
     other = run_line(day, seed=4).kpis()
     assert other["link"]["channel"] != first["link"]["channel"]
+
+
+def test_a_result_pickles_with_its_kpis(advised):
+    # a sweep's worker (Dask, multiprocessing) sends its result back pickled; it used to
+    # hold every train's simulation core (compiled closures: not picklable)
+    again = pickle.loads(pickle.dumps(advised))
+    assert again.kpis(baseline=advised) == advised.kpis(baseline=advised)
+    for train_id, run in advised.drivers.items():
+        assert again.drivers[train_id].sections == run.sections
 
 
 def test_the_baseline_runs_the_same_day_without_advice(day, advised):

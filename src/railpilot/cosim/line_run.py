@@ -35,7 +35,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -58,16 +58,34 @@ POWER_ON_LEAD_S = 120.0
 RETRY_WHILE_DOWN_S = 10.0
 
 
-class DrivenTrain(Protocol):
+@dataclass
+class TrainRun:
     """A train as the KPIs read it: its timetable, the sections it ran, whether it reached
-    its destination and how often it stopped at red (a :class:`TrainDriver`, or a live
-    train's report, cosim/live.py)."""
+    its destination, how often it stopped at red and how many re-timings changed its plan.
+
+    A co-simulated train's (:meth:`of` its driver at the end of the run) or a live train's
+    report (cosim/live.py). Plain data: a result holds no simulation core, so it pickles
+    (a sweep's worker sends its result back) and a study can keep many of them.
+    """
 
     service: Service
     sections: list[SectionRun]
     finished: bool
     red_signal_stops: int
     running_times_received: int
+    #: the running times the ground sent [s] by station pair (its last for each)
+    running_times: dict[tuple[int, int], float] = field(default_factory=dict)
+
+    @classmethod
+    def of(cls, driver: TrainDriver) -> TrainRun:
+        return cls(
+            driver.service,
+            list(driver.sections),
+            driver.finished,
+            driver.red_signal_stops,
+            driver.running_times_received,
+            dict(driver.running_times),
+        )
 
 
 @dataclass
@@ -78,7 +96,7 @@ class LineResult:
     scenario: LineScenario
     seed: int
     advised: bool
-    drivers: Mapping[int, DrivenTrain]
+    drivers: Mapping[int, TrainRun]
     trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
     tsr_violations: list[dict[str, Any]]
     signals_passed_at_red: list[dict[str, Any]]
@@ -299,7 +317,7 @@ def run_line(
         scenario,
         seed,
         advised,
-        drivers,
+        {i: TrainRun.of(driver) for i, driver in drivers.items()},
         watch.trackside.traces(),
         watch.trackside.tsr_violations,
         watch.trackside.passed_at_red,

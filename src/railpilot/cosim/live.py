@@ -51,7 +51,7 @@ from railpilot.net.timers import LinkClock
 from . import live_ground, live_train
 from .channel import ChannelCounters, channel_totals
 from .driver import SectionRun, Service
-from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult
+from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
 from .live_wire import MAX_LINE, receive, send
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
 from .trackside import CabView, Trackside, TrainSeen
@@ -75,17 +75,6 @@ LOOK_AFTER_S = 0.5
 
 class LiveRunError(RailpilotError):
     """A live run that could not go on (a process that did not start or answer)."""
-
-
-@dataclass
-class TrainRun:
-    """A live train as the KPIs read it (``DrivenTrain``): its report at the end."""
-
-    service: Service
-    sections: list[SectionRun]
-    finished: bool
-    red_signal_stops: int
-    running_times_received: int
 
 
 @dataclass
@@ -437,6 +426,7 @@ class _LiveRun:
                 bool(r["finished"]),
                 int(r["red_signal_stops"]),
                 int(r["running_times_received"]),
+                {(int(a), int(b)): float(t) for a, b, t in r["running_times"]},
             )
             for i, r in sorted(self.results.items())
         }
@@ -494,4 +484,4 @@ def _sum_counts(dicts: list[dict[str, Any]]) -> dict[str, Any]:
     return total
 
 
-__all__ = ["DEFAULT_SPEEDUP", "LiveOptions", "LiveRunError", "TrainRun", "run_live"]
+__all__ = ["DEFAULT_SPEEDUP", "LiveOptions", "LiveRunError", "run_live"]

@@ -191,6 +191,7 @@ async def _main(args: TrainArgs) -> None:
             "finished": driver.finished,
             "red_signal_stops": driver.red_signal_stops,
             "running_times_received": driver.running_times_received,
+            "running_times": [[*pair, t] for pair, t in driver.running_times.items()],
             "tsr_applied": {str(k): v for k, v in applied.items()},
             "onboard": counters_dict([client.endpoint.counters]),
             "connects": client.connects,
