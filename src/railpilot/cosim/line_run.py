@@ -78,6 +78,7 @@ class TrainRun:
 
     @classmethod
     def of(cls, driver: TrainDriver) -> TrainRun:
+        """What ``driver`` ran, copied (the driver and its core can then go)."""
         return cls(
             driver.service,
             list(driver.sections),
