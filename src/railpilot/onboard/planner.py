@@ -212,10 +212,28 @@ def _envelope(
 
 
 @njit(cache=True, inline="always")
-def _forward_step(q: np.ndarray, speed: float, cruise: float, w: float, dx: float) -> float:
-    """The forward pass's speed [m/s] one grid step ``dx`` [m] on from ``speed`` [m/s],
-    towards ``cruise`` [m/s] on the mean line resistance ``w`` [N/kN], before the envelope
-    bounds it."""
+def _forward_next(
+    q: np.ndarray,
+    line_w: np.ndarray,
+    ceiling: np.ndarray,
+    envelope: np.ndarray,
+    v1: float,
+    dx: float,
+    i: int,
+    speed: float,
+) -> float:
+    """The forward pass's speed [m/s] at grid point ``i + 1``, one step ``dx`` [m] on from
+    ``speed`` [m/s] at ``i``: towards the cruise speed ``min(v1, C)`` on the step's mean
+    line resistance, bounded by the envelope (module docstring). :func:`_forward` and
+    :func:`_forward_time` both step with it, so their profiles are the same to the bit."""
+    w = 0.5 * (line_w[i] + line_w[i + 1])
+    return min(envelope[i + 1], _towards_cruise(q, speed, min(v1, ceiling[i + 1]), w, dx))
+
+
+@njit(cache=True, inline="always")
+def _towards_cruise(q: np.ndarray, speed: float, cruise: float, w: float, dx: float) -> float:
+    """The speed [m/s] one grid step ``dx`` [m] on from ``speed`` [m/s], towards ``cruise``
+    [m/s] on the mean line resistance ``w`` [N/kN], before the envelope bounds it."""
     coast = _coast_decel(q, speed, w)
     sq = speed * speed - 2.0 * dx * coast
     coasting = math.sqrt(sq) if sq > 0.0 else 0.0
@@ -248,8 +266,7 @@ def _forward(
     v = np.empty(n)
     v[0] = envelope[0]
     for i in range(n - 1):
-        w = 0.5 * (line_w[i] + line_w[i + 1])
-        v[i + 1] = min(envelope[i + 1], _forward_step(q, v[i], min(v1, ceiling[i + 1]), w, dx))
+        v[i + 1] = _forward_next(q, line_w, ceiling, envelope, v1, dx, i, v[i])
     return v
 
 
@@ -268,8 +285,7 @@ def _forward_time(
     time = 0.0
     speed = envelope[0]
     for i in range(envelope.shape[0] - 1):
-        w = 0.5 * (line_w[i] + line_w[i + 1])
-        nxt = min(envelope[i + 1], _forward_step(q, speed, min(v1, ceiling[i + 1]), w, dx))
+        nxt = _forward_next(q, line_w, ceiling, envelope, v1, dx, i, speed)
         mean = 0.5 * (speed + nxt)
         speed = nxt
         if mean <= 0.0:
