@@ -239,3 +239,49 @@ def test_a_train_running_early_is_not_slowed_below_its_timetable() -> None:
     report(r, 1, now, 0, late_s=-200.0)
     (sent,) = dict(r.update(now)).values()
     assert times_of(sent) == pytest.approx({(2, 3): PLANNED_S, (3, 4): PLANNED_S}, abs=1e-6)
+
+
+def arrived(r: OnlineRetimer, train_id: int, now_s: float, section: int) -> None:
+    """``train_id``'s report at ``now_s``: it has run ``section`` (0-based) in its planned
+    time and stands at its end."""
+    t = r.trains[train_id]
+    r.report(
+        train_id,
+        PlannedCurve(t.stations[section], t.stations[section + 1], PLANNED_S, 0.0),
+        now_s,
+    )
+
+
+def test_a_train_standing_its_dwell_says_so_each_minute_and_stays_on_plan() -> None:
+    # on time at station 2 (T0 + 1000), due out at T0 + 1120: the reports it repeats while
+    # it stands do not move its arrival (that of the first), so it is not late, even with
+    # a threshold shorter than its dwell
+    r = retimer(train(1, T0), off_plan_s=60.0)
+    r.update(T0)
+    for now in (T0 + 1000.0, T0 + 1060.0, T0 + 1119.0):
+        arrived(r, 1, now, 0)
+        assert r.off_plan(now) == []
+    assert r.update(T0 + 1119.0) == []
+
+
+def test_a_train_held_at_a_station_past_its_departure_is_retimed_from_now() -> None:
+    # on time in at station 2, due out at T0 + 1120, still there 200 s later (a failure):
+    # its arrival was on plan, its departure is not
+    r = retimer(train(1, T0))
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    now = T0 + 1120.0 + 200.0
+    assert r.off_plan(now - 100.0) == []  # within off_plan_s of its departure
+    assert r.off_plan(now) == [1]
+    sent = dict(r.update(now))
+    times = times_of(sent[1])
+    assert set(times) == {(2, 3), (3, 4)}
+    # it leaves no earlier than now: the 200 s it is late are made up by the next dwell's
+    # margin (60 s) and the two sections left (140 s), and it is due on time again
+    assert sum(times.values()) <= 2 * PLANNED_S - (200.0 - (DWELL_S - MIN_DWELL_S)) + 1e-6
+    assert r.planned_arrivals(1)[2] <= r.trains[1].arrivals_s[2] + 1e-6
+    assert all(FASTEST_S - 1e-6 <= v <= PLANNED_S + 1e-6 for v in times.values())
+    # on the new plan while it stands no longer than the re-timing expected ...
+    assert r.off_plan(now + 100.0) == []
+    # ... and off it again once it has stood off_plan_s longer
+    assert r.off_plan(now + 121.0) == [1]

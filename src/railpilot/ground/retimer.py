@@ -10,7 +10,9 @@ energy-time curves (ground/energy.py, through ``curves``). No I/O, time passed i
 When
     At most every ``every_s``, if a train's report puts its arrival at the station it runs
     to more than ``off_plan_s`` from the plan in force (the timetable, or the last
-    re-timing's times), either way. Not in the first ``every_s`` of a retimer (a ground
+    re-timing's times), either way; or if a train that has arrived at a station is still
+    there ``off_plan_s`` after the plan in force has it leave (held by a failure or a red
+    signal: on time in, late out). Not in the first ``every_s`` of a retimer (a ground
     that has just started, or restarted, waits for every running train's report: they
     come at least once a minute).
 Who
@@ -26,8 +28,10 @@ What each train still has
     LP's energy term decides how much of its margin a late train uses. From its last
     report: the section it runs is committed (departed at ``report time -
     elapsed``, arriving at ``report time + remaining``); a report with nothing remaining
-    says it has arrived (at the report's time). Its remaining sections start at that
-    station, no earlier than the arrival plus its minimum dwell. After a re-timing, the
+    says it has arrived (at the report's time; a train standing at a station repeats it
+    once a minute, and only the first one's time is its arrival). Its remaining sections
+    start at that station, no earlier than the arrival plus its minimum dwell, and, if it
+    has arrived, no earlier than now (it is still there). After a re-timing, the
     plan in force is its times, and for the section a train runs, the arrival the
     re-timing expected: it is off plan again only if that expectation moves. A train
     that has not
@@ -196,6 +200,8 @@ class OnlineRetimer:
         self._done: set[int] = set()
         #: the plan in force: per train, the arrival at each station after the first
         self._plan = {i: np.array(t.arrivals_s, dtype=float) for i, t in self.trains.items()}
+        #: and the departure from each station but the last
+        self._leave = {i: np.array(t.departures_s, dtype=float) for i, t in self.trains.items()}
         self._sent: dict[int, RunningTimes] = {}
         self._last_s = -math.inf
         self._started_s: float | None = None
@@ -211,6 +217,11 @@ class OnlineRetimer:
         if j is None:
             return  # not a section of its timetable: nothing the ground can re-time
         arrived = report.remaining_s <= 0.0
+        known = self._progress.get(train_id)
+        if arrived and known is not None and known.arrived and known.j == j:
+            # the same arrival again: a train standing at a station says so once a minute,
+            # and the report's time is not its arrival's (the first such report's is)
+            return
         total = report.elapsed_s + report.remaining_s
         self._progress[train_id] = _Progress(
             j,
@@ -247,6 +258,12 @@ class OnlineRetimer:
             expected = p.arrival_s if p.arrived else max(p.arrival_s, now_s)
             if abs(expected - self._plan[train_id][p.j]) > self.settings.off_plan_s:
                 late.append(train_id)
+            elif (
+                p.arrived
+                and self._leaves_s(train_id, now_s) - self._leave[train_id][p.j + 1]
+                > self.settings.off_plan_s
+            ):
+                late.append(train_id)  # on time in, held at the station (a failure, a red)
         return sorted(late, key=self._order_key)
 
     def update(self, now_s: float) -> list[tuple[int, RunningTimes]]:
@@ -329,6 +346,7 @@ class OnlineRetimer:
             stations = self.trains[train_id].stations
             k = stations.index(times.stations[0][0])
             self._plan[train_id][k:] = times.arrival_s
+            self._leave[train_id][k:] = times.departure_s
             p = self._progress.get(train_id)
             if p is not None:
                 # the section it runs: the expectation the re-timing took is the plan now
@@ -357,7 +375,7 @@ class OnlineRetimer:
         else:
             first = p.j + 1
             current = self._committed(train_id, now_s)
-            earliest = current.arrival_s + dwell
+            earliest = self._leaves_s(train_id, now_s) if p.arrived else current.arrival_s + dwell
             committed = (current,)
         n = len(t.stations) - 1
         if first >= n:
@@ -391,6 +409,12 @@ class OnlineRetimer:
             earliest,
             committed=committed,
         )
+
+    def _leaves_s(self, train_id: int, now_s: float) -> float:
+        """The earliest a train its last report has at a station leaves it [s]: its
+        minimum dwell after the arrival, and not before now (still standing there)."""
+        p = self._progress[train_id]
+        return max(p.arrival_s + self.trains[train_id].min_dwell_s, now_s)
 
     def _committed(self, train_id: int, now_s: float) -> CommittedSection:
         """The section ``train_id`` runs or has just run, by its last report: departed,
