@@ -411,8 +411,8 @@ class OnlineRetimer:
         )
 
     def _leaves_s(self, train_id: int, now_s: float) -> float:
-        """The earliest a train its last report has at a station leaves it [s]: its
-        minimum dwell after the arrival, and not before now (still standing there)."""
+        """The earliest a train that its last report has at a station can leave [s]: its
+        minimum dwell after the arrival, and not before now (it is still there)."""
         p = self._progress[train_id]
         return max(p.arrival_s + self.trains[train_id].min_dwell_s, now_s)
 
