@@ -194,7 +194,10 @@ async def _main(args: TrainArgs) -> None:
             "running_times": [[*pair, t] for pair, t in driver.running_times.items()],
             "tsr_applied": {str(k): v for k, v in applied.items()},
             "onboard": counters_dict([client.endpoint.counters]),
-            "connects": client.connects,
+            # the connections that reached the ground, as the co-simulation counts them:
+            # while the ground is down the proxy (the train's radio) is refused and closes
+            # the onboard's connection at once
+            "connects": proxy.upstream_connections,
             "registrations": client.registrations,
             "link_failures": client.events_seen["LinkFailed"],
             "channel": channel.counters.as_dict(),

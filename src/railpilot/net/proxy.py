@@ -341,7 +341,11 @@ class FaultProxy:
         self.host = host
         self.port = port
         self.stats: dict[Direction, Counter[str]] = {"up": Counter(), "down": Counter()}
+        #: connections accepted from the client side
         self.connections = 0
+        #: of those, the ones that reached the upstream server (a server that is down
+        #: refuses the proxy, which then closes the client's connection at once)
+        self.upstream_connections = 0
         self._pairs: set[_Pair] = set()
         self._server: asyncio.Server | None = None
         self._tasks: set[asyncio.Task[None]] = set()
@@ -381,6 +385,7 @@ class FaultProxy:
             if pair.closed:
                 upstream.close()
                 return
+            self.upstream_connections += 1
             pair.connected(client, upstream)
 
         task = asyncio.get_running_loop().create_task(connect())
@@ -411,6 +416,7 @@ class FaultProxy:
         """What the proxy did, per direction (JSON-ready)."""
         return {
             "connections": self.connections,
+            "upstream_connections": self.upstream_connections,
             "up": dict(sorted(self.stats["up"].items())),
             "down": dict(sorted(self.stats["down"].items())),
         }
