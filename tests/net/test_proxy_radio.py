@@ -43,6 +43,8 @@ def test_packets_the_radio_loses_never_reach_the_ground_and_the_link_times_out()
             assert up["frames"] == 0  # nothing lost was passed on
             assert r.server.counters()["frames_received"] == 0
             assert r.clients[0].registrations == 0
+            # the train's core gave up on a link the ground never heard: a failure
+            await until(lambda: r.clients[0].link_failures >= 1)
 
     run(scenario())
 

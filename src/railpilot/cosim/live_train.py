@@ -199,7 +199,7 @@ async def _main(args: TrainArgs) -> None:
             # the onboard's connection at once
             "connects": proxy.upstream_connections,
             "registrations": client.registrations,
-            "link_failures": client.events_seen["LinkFailed"],
+            "link_failures": client.link_failures,
             "channel": channel.counters.as_dict(),
             "active_tsrs": sorted(client.endpoint.active_tsrs),
         },

@@ -199,6 +199,15 @@ class OnboardClient:
         #: Frames written to the socket per message type (only with ``count_sent``).
         self.sent_by_type: Counter[int] = Counter()
         self.connects = 0
+        #: connections that ended in a failure at either end: the core's ``LinkFailed``, or
+        #: a close from the other side of a connection the ground was heard on (the
+        #: ground gave up, or went down); not a connection closed on shutdown, nor one a
+        #: proxy closed at once because the ground refused it. The co-simulation counts
+        #: the same (cosim/link_sim.py)
+        self.link_failures = 0
+        self._gave_up = False  # the core gave up on the current connection
+        self._leaving = False  # shutting down: the last close is not a failure
+        self._accepted_at_connect = 0
         self.registrations = 0
         self.events_seen: Counter[str] = Counter()
         self.reconnect_delays_s: list[float] = []
@@ -283,6 +292,8 @@ class OnboardClient:
         self._transport = transport
         self._rejections = RejectionLog(log)
         self.connects += 1
+        self._gave_up = False
+        self._accepted_at_connect = self.endpoint.counters.frames_accepted
         now = self.clock()
         self.endpoint.connection_made(now)
         kv(log, logging.INFO, "connected", train=self.config.train_id, server=self._server())
@@ -299,6 +310,7 @@ class OnboardClient:
 
     async def _shutdown(self) -> None:
         """Deregister (``leave_reason``), wait a bounded time for the answer, then close."""
+        self._leaving = True
         now = self.clock()
         if self.endpoint.state in (OnboardState.REGISTERED, OnboardState.REGISTERING):
             self._deregistered = asyncio.Event()
@@ -325,6 +337,9 @@ class OnboardClient:
 
     def _on_connection_lost(self, exc: Exception | None) -> None:
         now = self.clock()
+        heard = self.endpoint.counters.frames_accepted > self._accepted_at_connect
+        if not self._leaving and (self._gave_up or heard):
+            self.link_failures += 1
         self._transport = None
         self._registered.clear()
         if self.endpoint.state is not OnboardState.DISCONNECTED:
@@ -441,6 +456,7 @@ class OnboardClient:
             # no longer registered from now, not from when the socket's close comes
             # through: a wait_registered() in between would return for a dead link
             self._registered.clear()
+            self._gave_up = True
             if self._transport is not None:
                 self._transport.close()
         for listener in self._listeners:
