@@ -260,7 +260,7 @@ class OnlineRetimer:
                 late.append(train_id)
             elif (
                 p.arrived
-                and self._leaves_s(train_id, now_s) - self._leave[train_id][p.j + 1]
+                and self._leaves_s(train_id, p, now_s) - self._leave[train_id][p.j + 1]
                 > self.settings.off_plan_s
             ):
                 late.append(train_id)  # on time in, held at the station (a failure, a red)
@@ -375,7 +375,10 @@ class OnlineRetimer:
         else:
             first = p.j + 1
             current = self._committed(train_id, now_s)
-            earliest = self._leaves_s(train_id, now_s) if p.arrived else current.arrival_s + dwell
+            if p.arrived:
+                earliest = self._leaves_s(train_id, p, now_s)
+            else:
+                earliest = current.arrival_s + dwell
             committed = (current,)
         n = len(t.stations) - 1
         if first >= n:
@@ -410,10 +413,9 @@ class OnlineRetimer:
             committed=committed,
         )
 
-    def _leaves_s(self, train_id: int, now_s: float) -> float:
-        """The earliest a train that its last report has at a station can leave [s]: its
-        minimum dwell after the arrival, and not before now (it is still there)."""
-        p = self._progress[train_id]
+    def _leaves_s(self, train_id: int, p: _Progress, now_s: float) -> float:
+        """The earliest ``train_id``, at a station by its last report ``p``, can leave [s]:
+        its minimum dwell after the arrival, and not before now (it is still there)."""
         return max(p.arrival_s + self.trains[train_id].min_dwell_s, now_s)
 
     def _committed(self, train_id: int, now_s: float) -> CommittedSection:

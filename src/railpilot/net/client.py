@@ -205,9 +205,9 @@ class OnboardClient:
         #: proxy closed at once because the ground refused it. The co-simulation counts
         #: the same (cosim/link_sim.py)
         self.link_failures = 0
-        self._gave_up = False  # the core gave up on the current connection
         self._leaving = False  # shutting down: the last close is not a failure
-        self._accepted_at_connect = 0
+        #: the core's (frames accepted, link failures) when the connection was made
+        self._counts_at_connect = (0, 0)
         self.registrations = 0
         self.events_seen: Counter[str] = Counter()
         self.reconnect_delays_s: list[float] = []
@@ -292,8 +292,7 @@ class OnboardClient:
         self._transport = transport
         self._rejections = RejectionLog(log)
         self.connects += 1
-        self._gave_up = False
-        self._accepted_at_connect = self.endpoint.counters.frames_accepted
+        self._counts_at_connect = self._core_counts()
         now = self.clock()
         self.endpoint.connection_made(now)
         kv(log, logging.INFO, "connected", train=self.config.train_id, server=self._server())
@@ -337,8 +336,10 @@ class OnboardClient:
 
     def _on_connection_lost(self, exc: Exception | None) -> None:
         now = self.clock()
-        heard = self.endpoint.counters.frames_accepted > self._accepted_at_connect
-        if not self._leaving and (self._gave_up or heard):
+        # the ground was heard on this connection, or the core gave up on it
+        accepted, failures = self._core_counts()
+        accepted_before, failures_before = self._counts_at_connect
+        if not self._leaving and (accepted > accepted_before or failures > failures_before):
             self.link_failures += 1
         self._transport = None
         self._registered.clear()
@@ -348,6 +349,10 @@ class OnboardClient:
         kv(log, logging.INFO, "disconnected", train=self.config.train_id, error=exc or "")
         if self._lost is not None:
             self._lost.set()
+
+    def _core_counts(self) -> tuple[int, int]:
+        counters = self.endpoint.counters
+        return counters.frames_accepted, counters.link_failures
 
     def _server(self) -> str:
         return f"{self.host}:{self.port}"
@@ -456,7 +461,6 @@ class OnboardClient:
             # no longer registered from now, not from when the socket's close comes
             # through: a wait_registered() in between would return for a dead link
             self._registered.clear()
-            self._gave_up = True
             if self._transport is not None:
                 self._transport.close()
         for listener in self._listeners:

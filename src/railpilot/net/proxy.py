@@ -212,7 +212,6 @@ class _Pipe:
         release = now + self.radio_delay_s
         if delayed:
             release += self.options.delay_ms / 1000.0
-        if delayed:
             self.stats["delayed"] += 1
         release = max(release, self._last_release_s)
         self._last_release_s = release
