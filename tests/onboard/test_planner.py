@@ -272,3 +272,28 @@ def test_the_search_times_a_profile_as_evaluating_it_does(name):
             profile = _forward(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
             time = _forward_time(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
             assert time == _evaluate(q, sec.line_w, profile, sec.dx_m)[0]
+
+
+def test_a_stop_on_a_long_descent_is_braked_at_half_the_planning_brake_net():
+    # 10 per mille down: coasting accelerates the loaded train by 0.07-0.08 m/s^2, so the
+    # planning brake (0.1 m/s^2) alone would leave 0.02-0.03 m/s^2 to stop with, a stop
+    # planned 5 km long from 80 km/h; the stop is braked at half the planning brake, net
+    sec = make_section(15_000.0, [(0.0, 15_000.0, -10.0)])
+    curve = fastest(DRIVE, sec)
+    net = 0.5 * DRIVE.brake_mps2
+    to_go = sec.s_m[-1] - sec.s_m
+    # the stop's braking: after the last point at the ceiling
+    braking = np.arange(sec.s_m.size) > np.flatnonzero(curve.speed_mps >= V80 - 1e-9).max()
+    assert to_go[braking].max() == pytest.approx(V80**2 / (2.0 * net), abs=10.0)
+    # a constant net deceleration from rest backwards, v = sqrt(2 net d), to rounding
+    assert_allclose(curve.speed_mps[braking], np.sqrt(2.0 * net * to_go[braking]), rtol=1e-9)
+
+
+def test_a_stop_on_the_level_is_braked_as_before():
+    # the planning brake plus the running resistance: more than the planning brake, net
+    sec = SECTIONS["level"]
+    curve = fastest(DRIVE, sec)
+    to_go = sec.s_m[-1] - sec.s_m
+    braking = np.arange(sec.s_m.size) > np.flatnonzero(curve.speed_mps >= V80 - 1e-9).max()
+    assert to_go[braking].max() < V80**2 / (2.0 * DRIVE.brake_mps2)
+    assert np.all(curve.speed_mps[braking] >= np.sqrt(2.0 * DRIVE.brake_mps2 * to_go[braking]))

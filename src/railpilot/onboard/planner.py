@@ -22,11 +22,13 @@ train), with the ceiling ``C(s)`` (the most restrictive speed profile, for the w
 
 ``w_coast = (R(v) + line resistance) / m_eff`` the coasting deceleration (negative on a
 descent), ``b`` the planning brake (the regenerative envelope, then the air brake, up to
-``brake_mps2``). The forward pass accelerates at full traction up to ``v1`` and cruises
-there; where the line alone would take the train above ``v1`` (a descent) it coasts, and it
-follows the envelope wherever it meets it: coasting or braking before a lower ceiling or a
-stop, and holding the ceiling with the regenerative brake on a descent. ``C = 0`` at both
-ends gives the stops.
+``brake_mps2``); braking to the stop at the end with the planning brake, the net
+deceleration ``w_coast + b`` is at least ``STOP_NET_BRAKE_SHARE b`` (on a descent the air
+brake adds what the line takes away, up to the full service). The forward pass
+accelerates at full traction up to ``v1`` and cruises there; where the line alone would
+take the train above ``v1`` (a descent) it coasts, and it follows the envelope wherever it
+meets it: coasting or braking before a lower ceiling or a stop, and holding the ceiling
+with the regenerative brake on a descent. ``C = 0`` at both ends gives the stops.
 
 Deviation from MARECO: MARECO also coasts *before* a descent on which the train would exceed
 ``v1`` (``AcceleratingSlopeCoast``), arriving at its foot at ``v1``. That suits a train that
@@ -63,6 +65,11 @@ from railpilot.vehicle.train import Train
 DEFAULT_STEP_M = 10.0
 #: the planning brake [m/s^2]: what the planned curve brakes with (regen first, then air)
 DEFAULT_BRAKE_MPS2 = 0.1
+#: a stop is braked to at no less than this share of the planning brake, net of the line
+#: (docs/onboard.md, "Planned curve": on a long descent the planning brake alone, less what
+#: the descent takes, planned stops kilometres long; a full share made plans the ATO's
+#: tracking of the air brake could not follow)
+STOP_NET_BRAKE_SHARE = 0.5
 #: running-time tolerance of the search [s] (one ATO control period or better)
 TIME_TOLERANCE_S = 0.1
 #: the speeds ``vb`` (as shares of the section's top speed) below which the planned curve
@@ -181,6 +188,9 @@ def _envelope(
     n = ceiling.shape[0]
     e = np.empty(n)
     e[n - 1] = ceiling[n - 1]
+    # braking to the stop at the end: until, going back, the envelope meets the ceiling
+    to_stop = ceiling[n - 1] <= 0.0
+    stop_net = STOP_NET_BRAKE_SHARE * q[Q_BRAKE]
     for i in range(n - 2, -1, -1):
         v = e[i + 1]
         w = 0.5 * (line_w[i] + line_w[i + 1])
@@ -200,6 +210,14 @@ def _envelope(
                     # the planning brake cannot hold the train here (a descent steeper
                     # than it): the plan brakes with the train's full service instead
                     braking = coast + q[Q_SERVICE]
+                if to_stop and braking < stop_net:
+                    # a stop on a descent: the air brake adds what the descent takes
+                    # away, up to the full service (the planning brake alone, net of
+                    # 11.5 per mille, planned a loaded train's stop 14 km long). The
+                    # regenerative phase and the braking for a lower speed stay as they
+                    # are: what the ATO tracks there, the air brake's minute-long
+                    # build-up could not follow (docs/onboard.md, "Planned curve")
+                    braking = min(stop_net, coast + q[Q_SERVICE])
             sq = v * v + 2.0 * dx * braking
             if v < vf and sq > vf * vf and braking > 0.0:
                 # braking reaches vf within the step: brake up to vf, coast the rest (so the
@@ -207,7 +225,11 @@ def _envelope(
                 braked = (vf * vf - v * v) / (2.0 * braking)
                 sq = vf * vf + 2.0 * (dx - braked) * coast
         back = math.sqrt(sq) if sq > 0.0 else 0.0
-        e[i] = min(ceiling[i], back)
+        if ceiling[i] <= back:
+            e[i] = ceiling[i]
+            to_stop = False
+        else:
+            e[i] = back
     return e
 
 
