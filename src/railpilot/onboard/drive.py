@@ -47,6 +47,7 @@ from railpilot.onboard.planner import (
     fastest,
     plan,
     section,
+    target_stop_net,
 )
 from railpilot.onboard.supervision import SupervisionCurve, supervision_curve
 from railpilot.onboard.target_point import safety_distance_m
@@ -560,7 +561,19 @@ class StationRoute:
         """The plan of ``sec``: for ``time_s`` if it ends at the arrival; to a target stop,
         for that stop's share of the time by distance (the target may clear)."""
         share = (end_s - s0) / max(self.length_m - s0, 1e-9)
-        return plan(self.preset.driving, sec, max(time_s * min(share, 1.0), 1.0))
+        return plan(
+            self.preset.driving,
+            sec,
+            max(time_s * min(share, 1.0), 1.0),
+            self.stop_net_mps2(end_s),
+        )
+
+    def stop_net_mps2(self, end_s: float) -> float:
+        """The least net deceleration [m/s^2] of a plan's stop at ``end_s`` [m from the
+        departure]: a target stop short of the station's (a red signal ahead) is braked
+        at ``target_stop_net`` however the line falls; the station's stop, planned for
+        its running time, at the planning brake's force (planner.py)."""
+        return target_stop_net(self.preset.driving) if end_s < self.length_m else 0.0
 
 
 def _supervision(

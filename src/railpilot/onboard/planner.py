@@ -22,9 +22,10 @@ train), with the ceiling ``C(s)`` (the most restrictive speed profile, for the w
 
 ``w_coast = (R(v) + line resistance) / m_eff`` the coasting deceleration (negative on a
 descent), ``b`` the planning brake (the regenerative envelope, then the air brake, up to
-``brake_mps2``); braking to the stop at the end with the planning brake, the net
-deceleration ``w_coast + b`` is at least ``STOP_NET_BRAKE_SHARE b`` (on a descent the air
-brake adds what the line takes away, up to the full service). The forward pass
+``brake_mps2``); braking with the planning brake to a stop at the end that is a target
+(a red signal, not the station), the net deceleration ``w_coast + b`` is at least
+``stop_net`` (on a descent the air brake adds what the line takes away, up to the full
+service). The forward pass
 accelerates at full traction up to ``v1`` and cruises there; where the line alone would
 take the train above ``v1`` (a descent) it coasts, and it follows the envelope wherever it
 meets it: coasting or braking before a lower ceiling or a stop, and holding the ceiling
@@ -65,11 +66,12 @@ from railpilot.vehicle.train import Train
 DEFAULT_STEP_M = 10.0
 #: the planning brake [m/s^2]: what the planned curve brakes with (regen first, then air)
 DEFAULT_BRAKE_MPS2 = 0.1
-#: a stop is braked to at no less than this share of the planning brake, net of the line
-#: (docs/onboard.md, "Planned curve": on a long descent the planning brake alone, less what
-#: the descent takes, planned stops kilometres long; a full share made plans the ATO's
-#: tracking of the air brake could not follow)
-STOP_NET_BRAKE_SHARE = 0.5
+#: a target stop (a red signal ahead, not the station) is braked to at no less than this
+#: share of the planning brake, net of the line (docs/onboard.md, "Planned curve": on a
+#: long descent the planning brake alone, less what the descent takes, planned a stop
+#: behind a slow leader 14 km long; a full share made plans the ATO's tracking of the air
+#: brake could not follow; at the station the long stop is the cheap one, and planned for)
+TARGET_STOP_NET_SHARE = 0.5
 #: running-time tolerance of the search [s] (one ATO control period or better)
 TIME_TOLERANCE_S = 0.1
 #: the speeds ``vb`` (as shares of the section's top speed) below which the planned curve
@@ -183,14 +185,16 @@ def _envelope(
     vf: float,
     vb: float,
     dx: float,
+    stop_net: float,
 ) -> np.ndarray:
-    """The backward coast-and-brake envelope ``E`` (module docstring)."""
+    """The backward coast-and-brake envelope ``E`` (module docstring); ``stop_net``
+    [m/s^2] the least net deceleration of the planning brake's stop at the end (0: the
+    planning brake's force, net of the line)."""
     n = ceiling.shape[0]
     e = np.empty(n)
     e[n - 1] = ceiling[n - 1]
     # braking to the stop at the end: until, going back, the envelope meets the ceiling
-    to_stop = ceiling[n - 1] <= 0.0
-    stop_net = STOP_NET_BRAKE_SHARE * q[Q_BRAKE]
+    to_stop = ceiling[n - 1] <= 0.0 and stop_net > 0.0
     for i in range(n - 2, -1, -1):
         v = e[i + 1]
         w = 0.5 * (line_w[i] + line_w[i + 1])
@@ -211,12 +215,13 @@ def _envelope(
                     # than it): the plan brakes with the train's full service instead
                     braking = coast + q[Q_SERVICE]
                 if to_stop and braking < stop_net:
-                    # a stop on a descent: the air brake adds what the descent takes
-                    # away, up to the full service (the planning brake alone, net of
-                    # 11.5 per mille, planned a loaded train's stop 14 km long). The
-                    # regenerative phase and the braking for a lower speed stay as they
-                    # are: what the ATO tracks there, the air brake's minute-long
-                    # build-up could not follow (docs/onboard.md, "Planned curve")
+                    # a target stop on a descent: the air brake adds what the descent
+                    # takes away, up to the full service (the planning brake alone, net
+                    # of 11.5 per mille, planned a loaded train's stop behind a slow
+                    # leader 14 km long). The regenerative phase and the braking for a
+                    # lower speed stay as they are: what the ATO tracks there, the air
+                    # brake's minute-long build-up could not follow (docs/onboard.md,
+                    # "Planned curve")
                     braking = min(stop_net, coast + q[Q_SERVICE])
             sq = v * v + 2.0 * dx * braking
             if v < vf and sq > vf * vf and braking > 0.0:
@@ -478,25 +483,35 @@ def _result(
     )
 
 
-def fastest(train: DrivingTrain, sec: Section) -> PlannedCurve:
-    """The fastest profile: full traction, the ceiling, the planning brake."""
+def target_stop_net(train: DrivingTrain) -> float:
+    """The least net deceleration [m/s^2] a plan brakes to a target stop with (a red
+    signal ahead, not the station): ``TARGET_STOP_NET_SHARE`` of the planning brake."""
+    return TARGET_STOP_NET_SHARE * train.brake_mps2
+
+
+def fastest(train: DrivingTrain, sec: Section, stop_net_mps2: float = 0.0) -> PlannedCurve:
+    """The fastest profile: full traction, the ceiling, the planning brake (to a stop at
+    the end, at least ``stop_net_mps2`` [m/s^2] net: a target stop, ``target_stop_net``)."""
     top = float(sec.ceiling_mps.max())
     # the fastest run does not coast: vf above every speed makes the envelope all braking
     q = train.params()
-    env = _envelope(q, sec.line_w, sec.ceiling_mps, np.inf, np.inf, sec.dx_m)
+    env = _envelope(q, sec.line_w, sec.ceiling_mps, np.inf, np.inf, sec.dx_m, stop_net_mps2)
     v = _forward(q, sec.line_w, sec.ceiling_mps, env, top, sec.dx_m)
     return replace(_result(train, sec, v, None, None, None), strategy="fastest")
 
 
-def plan(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCurve:
-    """The MARECO profile that runs the section in ``running_time_s`` [s] (docstring).
+def plan(
+    train: DrivingTrain, sec: Section, running_time_s: float, stop_net_mps2: float = 0.0
+) -> PlannedCurve:
+    """The MARECO profile that runs the section in ``running_time_s`` [s] (docstring);
+    ``stop_net_mps2`` as :func:`fastest`'s.
 
     Bisection on ``v1`` until the running time is within ``TIME_TOLERANCE_S``. A time
     shorter than the fastest run's gives the fastest run, ``met`` False.
     """
     if not (math.isfinite(running_time_s) and running_time_s > 0):
         raise ConfigError("running_time_s", running_time_s, "a running time > 0 [s]")
-    quickest = fastest(train, sec)
+    quickest = fastest(train, sec, stop_net_mps2)
     if running_time_s <= quickest.running_time_s + TIME_TOLERANCE_S:
         met = abs(quickest.running_time_s - running_time_s) <= TIME_TOLERANCE_S
         return replace(quickest, requested_time_s=running_time_s, met=met)
@@ -504,7 +519,7 @@ def plan(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCur
     top = float(sec.ceiling_mps.max())
     best: PlannedCurve | None = None
     for share in REGEN_BRAKING_SHARES:
-        candidate = _search_v1(train, q, sec, running_time_s, share * top)
+        candidate = _search_v1(train, q, sec, running_time_s, share * top, stop_net_mps2)
         if candidate is None:
             continue
         if best is None or candidate.energy_net_kwh < best.energy_net_kwh:
@@ -519,7 +534,12 @@ def plan(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCur
 
 
 def _search_v1(
-    train: DrivingTrain, q: np.ndarray, sec: Section, running_time_s: float, vb: float
+    train: DrivingTrain,
+    q: np.ndarray,
+    sec: Section,
+    running_time_s: float,
+    vb: float,
+    stop_net: float,
 ) -> PlannedCurve | None:
     """Bisection on ``v1`` for one ``vb``; None if this family cannot run that fast."""
     # v1 may exceed the ceiling: the cap then binds nowhere and only vf(v1) < top speed
@@ -530,7 +550,7 @@ def _search_v1(
         hi *= 1.25
     # this family's fastest: if even that is too slow, it cannot meet the time
     env = _envelope(
-        q, sec.line_w, sec.ceiling_mps, train.coast_to_brake_speed_mps(hi), vb, sec.dx_m
+        q, sec.line_w, sec.ceiling_mps, train.coast_to_brake_speed_mps(hi), vb, sec.dx_m, stop_net
     )
     if _forward_time(q, sec.line_w, sec.ceiling_mps, env, hi, sec.dx_m) > (
         running_time_s + TIME_TOLERANCE_S
@@ -539,7 +559,7 @@ def _search_v1(
     for _ in range(60):
         v1 = 0.5 * (lo + hi)
         vf = train.coast_to_brake_speed_mps(v1)
-        env = _envelope(q, sec.line_w, sec.ceiling_mps, vf, vb, sec.dx_m)
+        env = _envelope(q, sec.line_w, sec.ceiling_mps, vf, vb, sec.dx_m, stop_net)
         time = _forward_time(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
         if abs(time - running_time_s) <= TIME_TOLERANCE_S:
             v = _forward(q, sec.line_w, sec.ceiling_mps, env, v1, sec.dx_m)
