@@ -309,3 +309,9 @@ def test_the_station_stop_on_a_long_descent_is_braked_as_before():
     # and its last 20 km/h take longer than a target stop's (test above)
     under_20 = to_go[curve.speed_mps >= kmh_to_mps(20.0)].min()
     assert under_20 > kmh_to_mps(20.0) ** 2 / (2.0 * 0.03)
+
+
+@pytest.mark.parametrize("bad", [-0.05, float("nan"), float("inf")])
+def test_a_stop_deceleration_that_is_not_one_is_refused_by_name(bad):
+    with pytest.raises(ConfigError, match="stop_net_mps2"):
+        plan(DRIVE, SECTIONS["level"], 1_000.0, bad)

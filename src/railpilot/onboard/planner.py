@@ -25,11 +25,11 @@ descent), ``b`` the planning brake (the regenerative envelope, then the air brak
 ``brake_mps2``); braking with the planning brake to a stop at the end that is a target
 (a red signal, not the station), the net deceleration ``w_coast + b`` is at least
 ``stop_net`` (on a descent the air brake adds what the line takes away, up to the full
-service). The forward pass
-accelerates at full traction up to ``v1`` and cruises there; where the line alone would
-take the train above ``v1`` (a descent) it coasts, and it follows the envelope wherever it
-meets it: coasting or braking before a lower ceiling or a stop, and holding the ceiling
-with the regenerative brake on a descent. ``C = 0`` at both ends gives the stops.
+service). The forward pass accelerates at full traction up to ``v1`` and cruises there;
+where the line alone would take the train above ``v1`` (a descent) it coasts, and it
+follows the envelope wherever it meets it: coasting or braking before a lower ceiling or a
+stop, and holding the ceiling with the regenerative brake on a descent. ``C = 0`` at both
+ends gives the stops.
 
 Deviation from MARECO: MARECO also coasts *before* a descent on which the train would exceed
 ``v1`` (``AcceleratingSlopeCoast``), arriving at its foot at ``v1``. That suits a train that
@@ -492,6 +492,8 @@ def target_stop_net(train: DrivingTrain) -> float:
 def fastest(train: DrivingTrain, sec: Section, stop_net_mps2: float = 0.0) -> PlannedCurve:
     """The fastest profile: full traction, the ceiling, the planning brake (to a stop at
     the end, at least ``stop_net_mps2`` [m/s^2] net: a target stop, ``target_stop_net``)."""
+    if not (math.isfinite(stop_net_mps2) and stop_net_mps2 >= 0.0):
+        raise ConfigError("stop_net_mps2", stop_net_mps2, "a deceleration >= 0 [m/s^2]")
     top = float(sec.ceiling_mps.max())
     # the fastest run does not coast: vf above every speed makes the envelope all braking
     q = train.params()
