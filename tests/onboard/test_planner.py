@@ -275,17 +275,32 @@ def test_the_search_times_a_profile_as_evaluating_it_does(name):
             assert time == _evaluate(q, sec.line_w, profile, sec.dx_m)[0]
 
 
+#: 15 km all 10 per mille down, a stop at each end
+DESCENT_10 = make_section(15_000.0, [(0.0, 15_000.0, -10.0)])
+#: distance to the stop at the end [m], on its grid
+DESCENT_10_TO_GO = DESCENT_10.s_m[-1] - DESCENT_10.s_m
+
+
+def _stop_braking(curve):  # type: ignore[no-untyped-def]
+    """Grid points of the stop at the end's braking: after the last at the ceiling, 80 km/h."""
+    return np.arange(curve.speed_mps.size) > np.flatnonzero(curve.speed_mps >= V80 - 1e-9).max()
+
+
+def _under_20_kmh_m(curve):  # type: ignore[no-untyped-def]
+    """How far before the stop at the end the curve falls below 20 km/h [m]."""
+    return DESCENT_10_TO_GO[curve.speed_mps >= kmh_to_mps(20.0)].min()
+
+
 def test_a_target_stop_on_a_long_descent_is_braked_at_half_the_planning_brake_net():
     # 10 per mille down: coasting accelerates the loaded train by 0.07-0.08 m/s^2, so the
     # planning brake (0.1 m/s^2) alone would leave 0.02-0.03 m/s^2 to stop with, a stop
     # planned 5 km long from 80 km/h; a target stop is braked at half the planning brake,
     # net
-    sec = make_section(15_000.0, [(0.0, 15_000.0, -10.0)])
+    sec, to_go = DESCENT_10, DESCENT_10_TO_GO
     net = 0.5 * DRIVE.brake_mps2
     assert target_stop_net(DRIVE) == net
-    to_go = sec.s_m[-1] - sec.s_m
     curve = fastest(DRIVE, sec, net)
-    braking = np.arange(sec.s_m.size) > np.flatnonzero(curve.speed_mps >= V80 - 1e-9).max()
+    braking = _stop_braking(curve)
     assert to_go[braking].max() == pytest.approx(V80**2 / (2.0 * net), abs=10.0)
     # a constant net deceleration from rest backwards, v = sqrt(2 net d), to rounding
     assert_allclose(curve.speed_mps[braking], np.sqrt(2.0 * net * to_go[braking]), rtol=1e-9)
@@ -295,20 +310,15 @@ def test_a_target_stop_on_a_long_descent_is_braked_at_half_the_planning_brake_ne
     for supplement in (0.05, 0.2, 0.4):
         to_target = plan(DRIVE, sec, (1.0 + supplement) * curve.running_time_s, net)
         to_station = plan(DRIVE, sec, (1.0 + supplement) * station.running_time_s)
-        under_20 = [to_go[c.speed_mps >= kmh_to_mps(20.0)].min() for c in (to_target, to_station)]
-        assert under_20[0] < 2.0 / 3.0 * under_20[1]
+        assert _under_20_kmh_m(to_target) < 2.0 / 3.0 * _under_20_kmh_m(to_station)
 
 
 def test_the_station_stop_on_a_long_descent_is_braked_as_before():
     # the planning brake's force, net of the line: 0.02-0.03 m/s^2, a stop kilometres long
-    sec = make_section(15_000.0, [(0.0, 15_000.0, -10.0)])
-    curve = fastest(DRIVE, sec)
-    to_go = sec.s_m[-1] - sec.s_m
-    braking = np.arange(sec.s_m.size) > np.flatnonzero(curve.speed_mps >= V80 - 1e-9).max()
-    assert to_go[braking].max() > V80**2 / (2.0 * 0.03)
+    curve = fastest(DRIVE, DESCENT_10)
+    assert DESCENT_10_TO_GO[_stop_braking(curve)].max() > V80**2 / (2.0 * 0.03)
     # and its last 20 km/h take longer than a target stop's (test above)
-    under_20 = to_go[curve.speed_mps >= kmh_to_mps(20.0)].min()
-    assert under_20 > kmh_to_mps(20.0) ** 2 / (2.0 * 0.03)
+    assert _under_20_kmh_m(curve) > kmh_to_mps(20.0) ** 2 / (2.0 * 0.03)
 
 
 @pytest.mark.parametrize("bad", [-0.05, float("nan"), float("inf")])

@@ -517,7 +517,7 @@ class TrainDriver:
     ) -> PlannedCurve:
         if self.advised:
             return route.plan_to(end_s, sec, time_s, s0)
-        return fastest(self.preset.driving, sec, route.stop_net_mps2(end_s))
+        return route.fastest_to(end_s, sec)
 
     def replan(self, t: float) -> None:
         """What the train knows changed at ``t``: plan again from where it is (as

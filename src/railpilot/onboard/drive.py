@@ -565,10 +565,15 @@ class StationRoute:
             self.preset.driving,
             sec,
             max(time_s * min(share, 1.0), 1.0),
-            self.stop_net_mps2(end_s),
+            self._stop_net_mps2(end_s),
         )
 
-    def stop_net_mps2(self, end_s: float) -> float:
+    def fastest_to(self, end_s: float, sec: Section) -> PlannedCurve:
+        """The fastest run of ``sec`` to its stop at ``end_s`` [m from the departure]
+        (the baseline driver's), braked to a target stop as :meth:`plan_to` brakes."""
+        return fastest(self.preset.driving, sec, self._stop_net_mps2(end_s))
+
+    def _stop_net_mps2(self, end_s: float) -> float:
         """The least net deceleration [m/s^2] of a plan's stop at ``end_s`` [m from the
         departure]: a target stop short of the station's (a red signal ahead) is braked
         at ``target_stop_net`` however the line falls; the station's stop, planned for
