@@ -18,7 +18,7 @@ from railpilot.link import (
     verify_mac,
 )
 from railpilot.link.codec import encode_body
-from railpilot.link.frame import compute_mac, encode_frame
+from railpilot.link.frame import compute_mac, encode_frame, hmac_sha256
 from railpilot.link.messages import RunningInfo, TravelDirection
 
 from .helpers import GROUND_ID, KEY_1, KEY_2, TRAIN_ID
@@ -125,6 +125,20 @@ def test_mac_is_truncated_hmac_sha256_over_everything_before_it() -> None:
     frame = raw_frame(KEY_1)
     expected = hmac.new(KEY_1, frame[:-20], hashlib.sha256).digest()[:16]
     assert frame[-20:-4] == expected == compute_mac(KEY_1, frame)
+
+
+@pytest.mark.parametrize("key_length", [0, 1, 16, 32, 63, 64, 65, 200])
+def test_hmac_with_kept_pad_states_is_the_standard_library_s(key_length: int) -> None:
+    import hmac
+    import random
+
+    draw = random.Random(key_length)
+    key = draw.randbytes(key_length)
+    for data_length in (0, 1, 55, 56, 64, 100, 1000):
+        data = draw.randbytes(data_length)
+        # twice: the kept pad states must not change with use
+        for _ in range(2):
+            assert hmac_sha256(key, data) == hmac.digest(key, data, "sha256")
 
 
 def test_mac_verifies_under_the_right_key() -> None:
