@@ -12,14 +12,19 @@ at one instant, and events land when the loop gets to them. The tolerance:
   twice, in both;
 * every train runs the same sections and finishes in both;
 * per train, end-to-end conformity within 1 percentage point (about 15 s on its 25-minute
-  run) and net energy within 3 % (the same driving, give or take a second's timing of a
-  replan);
+  run) and net energy within 2 % of the co-simulation's own spread when its events land
+  up to 2 s later (the timing the live run is allowed, below): a train's energy is that
+  sensitive to when a TSR arrives. Co-simulated with every event 0.5 s later, train 101
+  takes 3.3 % less energy; 2 s later, 4.6 % less (the replan moves when its air brake
+  applies, and its traction pulls against the slow release for a minute after:
+  docs/line-run.md, "Live"). A fixed 3 % around the on-time run failed once on a loaded
+  host (101 live at 382.9 kWh, on time 397.6 kWh), inside that spread;
 * red-signal stops within one per train.
 """
 
 from __future__ import annotations
 
-import math
+import dataclasses
 from pathlib import Path
 
 import pytest
@@ -27,13 +32,16 @@ import pytest
 from railpilot.cosim.driver import TrainDriver
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.live import LiveOptions, run_live
-from railpilot.cosim.scenario import load_scenario
+from railpilot.cosim.scenario import ScenarioEvent, load_scenario
 from railpilot.web.browser import missing_browser
 
 SCENARIO = Path(__file__).parents[2] / "examples" / "line_live_short.toml"
 SPEEDUP = 60.0
 CONFORMITY_PP = 1.0
-ENERGY_REL = 0.03
+ENERGY_REL = 0.02
+#: the co-simulation again with every event this much later [s] (the live run's events
+#: must land within 2 s of their time: test_live_run_went_over_the_real_link...)
+EVENT_DELAYS_S = (0.5, 1.0, 2.0)
 
 
 @pytest.fixture(scope="module")
@@ -45,11 +53,16 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, dict, dict]:  
         LiveOptions(speedup=SPEEDUP, screenshot=shot, screenshot_at_s=30 * 60.0),
     )
     cosim = run_line(scenario)
-    return live.kpis(), cosim.kpis(), {"result": live}
+    late = [run_line(scenario.with_(events=_later(scenario.events, d))) for d in EVENT_DELAYS_S]
+    return live.kpis(), cosim.kpis(), {"result": live, "late": [r.kpis() for r in late]}
+
+
+def _later(events: tuple[ScenarioEvent, ...], delay_s: float) -> tuple[ScenarioEvent, ...]:
+    return tuple(dataclasses.replace(e, at_s=e.at_s + delay_s) for e in events)
 
 
 def test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance(runs) -> None:  # type: ignore[no-untyped-def]
-    live, cosim, _ = runs
+    live, cosim, extra = runs
     for kpis in (live, cosim):
         assert kpis["tsr_violations"] == 0
         assert kpis["target_points_passed"] == 0
@@ -61,7 +74,10 @@ def test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance(runs
         assert ours["sections_run"] == theirs["sections_run"], train
         e2e = ours["conformity_pct"]["end_to_end"]
         assert abs(e2e - theirs["conformity_pct"]["end_to_end"]) <= CONFORMITY_PP, train
-        assert math.isclose(ours["energy_kwh"], theirs["energy_kwh"], rel_tol=ENERGY_REL), train
+        spread = [theirs["energy_kwh"]] + [k["trains"][train]["energy_kwh"] for k in extra["late"]]
+        low = min(spread) - ENERGY_REL * abs(min(spread))
+        high = max(spread) + ENERGY_REL * abs(max(spread))
+        assert low <= ours["energy_kwh"] <= high, (train, ours["energy_kwh"], spread)
         assert abs(ours["red_signal_stops"] - theirs["red_signal_stops"]) <= 1, train
 
 
