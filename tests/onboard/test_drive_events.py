@@ -163,3 +163,23 @@ def test_the_preset_is_the_example_train_without_its_handover() -> None:
     assert preset.train == example.train
     assert example.brake.handover_kmh == 50.0
     assert preset.brake == replace(example.brake, handover_kmh=0.0)
+
+
+def test_traction_against_the_air_brake_is_the_smaller_force_over_the_distance() -> None:
+    # A loaded train from station 1 to 2: the kernel's running sum against the same
+    # integral taken afterwards from its every step (forces held over a step, the
+    # trapezoid of its speeds), and against the traction it is part of
+    outcome = drive(LINE, heavy_haul_loaded(), 1, 2, running_time_s=1560.0)
+    series, metrics = outcome.result.series, outcome.result.metrics
+    v, dt = series["speed_mps"], np.diff(series["time_s"])
+    traction = np.clip(-series["electric_n"], 0.0, None)
+    both = np.minimum(traction, np.clip(series["air_n"], 0.0, None))
+    distance = (v[:-1] + v[1:]) / 2 * dt
+    against = metrics["energy_traction_against_air_j"]
+    np.testing.assert_allclose(against, np.sum(both[:-1] * distance), rtol=1e-9)
+    np.testing.assert_allclose(metrics["energy_traction_j"], np.sum(traction[:-1] * distance))
+    assert 0.0 < against < metrics["energy_traction_j"]
+    eff = heavy_haul_loaded().brake.locomotive.traction_efficiency
+    np.testing.assert_allclose(
+        metrics["energy_traction_against_air_kwh"], against / eff / 3.6e6, rtol=1e-12
+    )

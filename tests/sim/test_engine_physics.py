@@ -138,6 +138,8 @@ def test_brake_energy_is_force_times_distance(by, metric, other):
     result = stop_run(by)
     assert_allclose(result.metrics[metric], M_EFF * 19.8**2 / 2, rtol=1e-9)
     assert result.metrics[other] == 0.0
+    # braking alone: no traction pulled against the brake
+    assert result.metrics["energy_traction_against_air_j"] == 0.0
 
 
 # --- coast-down --------------------------------------------------------------------

@@ -201,6 +201,9 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
         "max_section_conformity_pct": max(abs(r["conformity_pct"]) for r in results),
         "energy_traction_kwh": sum(r["energy_traction_kwh"] for r in results),
         "energy_regenerated_kwh": sum(r["energy_regenerated_kwh"] for r in results),
+        "energy_traction_against_air_kwh": sum(
+            r["energy_traction_against_air_kwh"] for r in results
+        ),
         "max_overspeed_kmh": {
             end: max(r["max_overspeed_kmh"][end] for r in results) for end in ("head", "tail")
         },

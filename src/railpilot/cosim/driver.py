@@ -163,6 +163,8 @@ class SectionRun:
     arrival_s: float = math.nan
     energy_traction_kwh: float = 0.0
     energy_regenerated_kwh: float = 0.0
+    #: of the traction energy, what pulled against the air brake (sim/result.py)
+    energy_traction_against_air_kwh: float = 0.0
     stops_at_red: int = 0
     replans: int = 0
     #: the running time the train planned the section for [s]: the timetable's, or the
@@ -372,6 +374,7 @@ class TrainDriver:
         metrics = running.stepper.result().metrics
         record.energy_traction_kwh += float(metrics["energy_traction_kwh"])
         record.energy_regenerated_kwh += float(metrics["energy_regenerated_kwh"])
+        record.energy_traction_against_air_kwh += float(metrics["energy_traction_against_air_kwh"])
         self.sections.append(record)
         self._running = None
         self._k += 1

@@ -18,6 +18,10 @@ KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
     net traction energy (traction less regeneration) per train and in total;
     ``baseline_energy_kwh`` is the same day driven by the baseline (no advice, no
     re-timing: :func:`run_line` with ``advised=False``).
+``energy_traction_against_air_kwh``
+    of the traction energy drawn, what pulled against the air brake still applied (the
+    smaller of the two forces while both act; a loaded train's air brake takes about a
+    minute to release), per train and in total.
 ``red_signal_stops``
     the trains' stops at red signals (at rest short of the station).
 ``tsr_violations``
@@ -129,7 +133,7 @@ class LineResult:
         trains: dict[str, Any] = {}
         all_sections: list[float] = []
         end_to_end: list[float] = []
-        total_energy = 0.0
+        total_energy = against_air = 0.0
         for train_id, driver in sorted(self.drivers.items()):
             sections = driver.sections
             per_section = [
@@ -138,6 +142,8 @@ class LineResult:
             all_sections += per_section
             energy = sum(s.energy_traction_kwh - s.energy_regenerated_kwh for s in sections)
             total_energy += energy
+            wasted = sum(s.energy_traction_against_air_kwh for s in sections)
+            against_air += wasted
             row: dict[str, Any] = {
                 "number": driver.service.number,
                 "kind": driver.service.kind,
@@ -151,6 +157,7 @@ class LineResult:
                 "energy_kwh": round(energy, 1),
                 "energy_traction_kwh": round(sum(s.energy_traction_kwh for s in sections), 1),
                 "energy_regenerated_kwh": round(sum(s.energy_regenerated_kwh for s in sections), 1),
+                "energy_traction_against_air_kwh": round(wasted, 1),
                 "red_signal_stops": driver.red_signal_stops,
                 "running_times_received": driver.running_times_received,
                 "arrival_delay_s": None,
@@ -177,6 +184,7 @@ class LineResult:
                 "max_section": round(max(all_sections), 3) if all_sections else None,
             },
             "energy_kwh": round(total_energy, 1),
+            "energy_traction_against_air_kwh": round(against_air, 1),
             "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
             "tsr_violations": len(self.tsr_violations),
             "target_points_passed": len(self.signals_passed_at_red),
@@ -198,6 +206,7 @@ class LineResult:
                 for k in (
                     "conformity_pct",
                     "energy_kwh",
+                    "energy_traction_against_air_kwh",
                     "red_signal_stops",
                     "tsr_violations",
                     "target_points_passed",

@@ -269,6 +269,7 @@ class DriveOutcome:
             "stop_error_m": metrics["stop_error_m"],
             "energy_traction_kwh": metrics["energy_traction_kwh"],
             "energy_regenerated_kwh": metrics["energy_regenerated_kwh"],
+            "energy_traction_against_air_kwh": metrics["energy_traction_against_air_kwh"],
             "planned_energy_traction_kwh": self.plan.energy_traction_kwh,
             "planned_energy_regenerated_kwh": self.plan.energy_regenerated_kwh,
             "max_speed_kmh": metrics["max_speed_kmh"],

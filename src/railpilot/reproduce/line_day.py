@@ -208,6 +208,11 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
         _total(advised, "energy_regenerated_kwh"),
         _total(baseline, "energy_regenerated_kwh"),
     )
+    row(
+        "of the traction, against the air brake [kWh]",
+        _total(advised, "energy_traction_against_air_kwh"),
+        _total(baseline, "energy_traction_against_air_kwh"),
+    )
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
         row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
     row("trains finished", _finished(advised), _finished(baseline))

@@ -54,6 +54,7 @@ from railpilot.sim.layout import (
     C_E_ELEC,
     C_E_FRIC,
     C_E_TRAC,
+    C_E_TRAC_AIR,
     C_HAS_MOVED,
     C_MAX_DECEL,
     C_MAX_JERK,
@@ -130,8 +131,9 @@ davis_specific_resistance = njit(inline="always")(resistance._davis_specific_res
     M_E_TRACTION,
     M_MAX_SPEED,
     M_STEPS,
-) = range(18)
-N_METRICS = 18
+    M_E_TRAC_AIR,
+) = range(19)
+N_METRICS = 19
 N_CHANNELS = 12
 
 G = G_MPS2  # the one value of g (units.py)
@@ -263,6 +265,7 @@ def run_kernel(
     e_elec = c[C_E_ELEC]
     e_fric = c[C_E_FRIC]
     e_trac = c[C_E_TRAC]
+    e_trac_air = c[C_E_TRAC_AIR]
     v_max = c[C_V_MAX]
     # a train that starts at rest is held there until its traction overcomes resistance;
     # only a train that has moved can come to its final stop
@@ -429,6 +432,7 @@ def run_kernel(
                 e_elec += max(e_n, 0.0) * v * h / 2.0
                 e_trac += max(-e_n, 0.0) * v * h / 2.0
                 e_fric += air_n * v * h / 2.0
+                e_trac_air += min(max(-e_n, 0.0), max(air_n, 0.0)) * v * h / 2.0
                 v = 0.0
                 moving = False
                 stop_t = t + h
@@ -439,6 +443,10 @@ def run_kernel(
                 e_elec += max(e_n, 0.0) * (v + v_next) * dt / 2.0
                 e_trac += max(-e_n, 0.0) * (v + v_next) * dt / 2.0
                 e_fric += air_n * (v + v_next) * dt / 2.0
+                # traction pulling against the air brake: the force the two cancel (a long
+                # train's air brake releases over a minute; what traction spends meanwhile
+                # heats the shoes)
+                e_trac_air += min(max(-e_n, 0.0), max(air_n, 0.0)) * (v + v_next) * dt / 2.0
                 v = v_next
                 if v > 0.0:
                     has_moved = True
@@ -503,6 +511,7 @@ def run_kernel(
     c[C_E_ELEC] = e_elec
     c[C_E_FRIC] = e_fric
     c[C_E_TRAC] = e_trac
+    c[C_E_TRAC_AIR] = e_trac_air
     c[C_V_MAX] = v_max
     c[C_HAS_MOVED] = 1.0 if has_moved else 0.0
     c[C_SLIDE_T] = slide_t
@@ -533,6 +542,7 @@ def run_kernel(
     metrics[M_E_TRACTION] = e_trac
     metrics[M_MAX_SPEED] = v_max
     metrics[M_STEPS] = steps_run
+    metrics[M_E_TRAC_AIR] = e_trac_air
 
 
 def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:

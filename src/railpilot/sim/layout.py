@@ -90,8 +90,9 @@ B_N_STATE, B_N_BUFFER = range(2)
     C_RX,
     C_RV,
     C_RAFF,
-) = range(31)
-N_CARRY = 31
+    C_E_TRAC_AIR,
+) = range(32)
+N_CARRY = 32
 
 
 class SimIn(NamedTuple):

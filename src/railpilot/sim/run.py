@@ -194,6 +194,7 @@ METRIC_INDEX: dict[str, int] = {
     "slide_time_s": engine.M_SLIDE_T,
     "energy_traction_j": engine.M_E_TRACTION,
     "max_speed_mps": engine.M_MAX_SPEED,
+    "energy_traction_against_air_j": engine.M_E_TRAC_AIR,
 }
 
 J_PER_KWH = 3.6e6
@@ -210,6 +211,9 @@ def derived_metrics(metrics: dict[str, float], brake: Any) -> dict[str, float]:
         "running_time_s": metrics["stop_time_s"],
         "energy_traction_kwh": metrics["energy_traction_j"] / traction_eff / J_PER_KWH,
         "energy_regenerated_kwh": metrics["energy_electric_j"] * regen_eff / J_PER_KWH,
+        "energy_traction_against_air_kwh": metrics["energy_traction_against_air_j"]
+        / traction_eff
+        / J_PER_KWH,
     }
 
 
