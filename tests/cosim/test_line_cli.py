@@ -38,6 +38,7 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
         "conformity_pct",
         "energy_kwh",
         "baseline_energy_kwh",
+        "energy_traction_against_air_kwh",
         "red_signal_stops",
         "tsr_violations",
         "target_points_passed",
@@ -120,6 +121,10 @@ def _check_sweep(out, runs):
     for key, values in (
         ("link.connects", connects),
         ("energy_kwh", sorted(r["energy_kwh"] for r in runs.values())),
+        (
+            "energy_traction_against_air_kwh",
+            sorted(r["energy_traction_against_air_kwh"] for r in runs.values()),
+        ),
     ):
         spread = out["kpis"][key]
         assert (spread["min"], spread["median"], spread["max"]) == tuple(values), key

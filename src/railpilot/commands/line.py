@@ -19,6 +19,7 @@ SWEPT = (
     "conformity_pct.mean_end_to_end",
     "conformity_pct.mean_abs_section",
     "energy_kwh",
+    "energy_traction_against_air_kwh",
     "red_signal_stops",
     "tsr_violations",
     "target_points_passed",
