@@ -47,9 +47,9 @@ METRICS: dict[str, str] = {
     "odometry_error_at_stop_m": "odometer position minus true position at the end [m]",
     "slide_time_s": "time the wheels slid (adhesion exceeded) [s]",
     "energy_traction_j": "work done by traction at the wheel [J]",
-    "max_speed_mps": "highest speed of the run [m/s]",
     "energy_traction_against_air_j": "work traction did against the air brake at the wheel: "
     "the smaller of the two forces while both act, times the distance [J]",
+    "max_speed_mps": "highest speed of the run [m/s]",
     "max_speed_kmh": "highest speed of the run [km/h]",
     "running_time_s": "time to the stop (nan if the train did not stop) [s]",
     "energy_traction_kwh": "traction energy drawn from the supply: wheel work / the traction "
