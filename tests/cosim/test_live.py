@@ -18,8 +18,8 @@ at one instant, and events land when the loop gets to them. The tolerance:
   takes 3.3 % less energy; 2 s later, 4.6 % less (the replan moves when its air brake
   applies, and its traction pulls against the slow release for a minute after:
   docs/line-run.md, "Live"). A fixed 3 % around the on-time run failed once on a loaded
-  host (101 live at 382.9 kWh, co-simulated 395.5 on the code of that day), inside
-  that spread;
+  host (101 live at 382.9 kWh, co-simulated 395.5 on the code of that day): inside the
+  spread measured on today's code (379.2-397.6 kWh);
 * red-signal stops within one per train.
 """
 
