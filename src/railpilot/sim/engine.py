@@ -423,35 +423,37 @@ def run_kernel(
             a = (outside - brake_n - resist) / m_eff
             v_next = v + a * dt
             x_before = x
+            # the step's trapezoid: its speeds' sum and how long it moved [s] (0: held)
+            speed_sum = 0.0
+            span = 0.0
             if v_next <= 0.0 and a < 0.0 and not has_moved:
                 # at rest and nothing pulls hard enough yet: held (brakes, adhesion)
                 a = 0.0
             elif v_next <= 0.0 and a < 0.0:
                 h = v / (-a)
                 x += v * h / 2.0
-                e_elec += max(e_n, 0.0) * v * h / 2.0
-                e_trac += max(-e_n, 0.0) * v * h / 2.0
-                e_fric += air_n * v * h / 2.0
-                e_trac_air += min(max(-e_n, 0.0), max(air_n, 0.0)) * v * h / 2.0
+                speed_sum, span = v, h
                 v = 0.0
                 moving = False
                 stop_t = t + h
             else:
-                x += (v + v_next) * dt / 2.0
-                # electric braking (regeneration) and traction apart: the actuator's
-                # electric force is negative when it pulls
-                e_elec += max(e_n, 0.0) * (v + v_next) * dt / 2.0
-                e_trac += max(-e_n, 0.0) * (v + v_next) * dt / 2.0
-                e_fric += air_n * (v + v_next) * dt / 2.0
-                # traction pulling against the air brake: the force the two cancel (a long
-                # train's air brake releases over a minute; what traction spends meanwhile
-                # heats the shoes)
-                e_trac_air += min(max(-e_n, 0.0), max(air_n, 0.0)) * (v + v_next) * dt / 2.0
+                speed_sum, span = v + v_next, dt
+                x += speed_sum * dt / 2.0
                 v = v_next
                 if v > 0.0:
                     has_moved = True
                 if v > v_max:
                     v_max = v
+            if span > 0.0:
+                # the forces' work over the step's distance. Electric braking (regeneration)
+                # and traction apart: the actuator's electric force is negative when it
+                # pulls. Traction pulling against the air brake: the force the two cancel
+                # (a long train's air brake releases over a minute; what traction spends
+                # meanwhile heats the shoes)
+                e_elec += max(e_n, 0.0) * speed_sum * span / 2.0
+                e_trac += max(-e_n, 0.0) * speed_sum * span / 2.0
+                e_fric += air_n * speed_sum * span / 2.0
+                e_trac_air += min(max(-e_n, 0.0), max(air_n, 0.0)) * speed_sum * span / 2.0
             # odometry: wheel revolutions times the (mis-)calibrated circumference
             travelled = x - x_before
             if sliding:
