@@ -310,12 +310,21 @@ def pstop_step(
         if stopping:
             u_stop = _stop_command(params, x, v, model, net, step, lo, hi)
             u = u_stop
-            if u_stop > 0.0:
-                # the stop needs pull, not brake: a light train climbing to its stop. A
-                # held pull is ill-conditioned there (near the balance of pull and
-                # gradient the train creeps for minutes; where the gradient eases the
-                # stop jumps from short to far beyond), and there is no slow brake to
-                # lead: follow the planned curve, which brakes to the point at its rate
+            # the speed one slow-path horizon from now, braking at the stop deceleration:
+            # the regeneration the fast path still gives then bounds what needs no lead
+            b_stop = params[P_STOP_DECEL] if params[P_STOP_DECEL] > 0.0 else max(-ref_a, 0.0)
+            v_later = max(v - b_stop * (s_sigma + s_tau), 0.0)
+            air_off = model[2] > -1e-6
+            if u_stop > 0.0 or (air_off and u_track > u_stop >= -fast_path_limit(params, v_later)):
+                # Nothing slow to lead: the stop needs pull (a light train climbing to its
+                # stop), or only the braking regeneration gives at once, now and an air
+                # horizon from now, with the air brake off. The held command is
+                # ill-conditioned there: near the balance of pull and gradient the train
+                # creeps for minutes, and where the gradient eases the stop jumps from
+                # short to far beyond; and a held brake that the gradient and the
+                # resistance do most of coasts the train to its stop at walking pace as
+                # they fall with speed (an empty train 11-13 % late on the climbs). Follow
+                # the planned curve, which brakes to the point at its rate, on time
                 # (docs/precise-stop.md, "Climbing to a stop")
                 u = u_track
     u_out = min(max(u, lo), hi)

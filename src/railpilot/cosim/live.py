@@ -193,8 +193,9 @@ class _LiveRun:
             wall_started = time.perf_counter()
             tasks = [asyncio.create_task(self._event(e)) for e in self.scenario.events]
             tasks.append(asyncio.create_task(self._watch()))
+            shot = None
             if self.options.screenshot is not None and self.options.screenshot_at_s is not None:
-                tasks.append(asyncio.create_task(self._screenshot(url)))
+                shot = asyncio.create_task(self._screenshot(url))
             await self._sleep_until(self.end_s)
             wall = time.perf_counter() - wall_started
             for task in tasks:
@@ -202,6 +203,12 @@ class _LiveRun:
             for outcome in await asyncio.gather(*tasks, return_exceptions=True):
                 if isinstance(outcome, Exception):  # an event that failed (not cancelled)
                     raise outcome
+            if shot is not None:
+                # not cancelled with the rest: on a busy machine the browser may still be
+                # drawing when the run ends (the ground and its page are still up), and
+                # a cancelled photograph left the report without one, or its reason.
+                # dashboard_screenshot bounds its own waits
+                await shot
             for train_id in self.services:
                 await self._send(train_id, {"op": "stop"})
             await self._ready(list(self.reported), ANSWER_TIMEOUT_S, self.reported)
