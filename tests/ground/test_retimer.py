@@ -141,6 +141,45 @@ def test_no_retiming_in_the_first_every_s_nor_more_often() -> None:
     assert len(r.log) == 2
 
 
+def test_a_restarted_ground_re_times_once_every_train_on_the_line_has_reported() -> None:
+    # the ground comes back at T0 + 1300: trains 1 and 2 are on the line, train 3 (due
+    # away at T0 + 1200) too; 2 is ten minutes late
+    r = three_up()
+    start = T0 + 1300.0
+    assert r.update(start) == []
+    report(r, 2, start + 20.0, 0, late_s=600.0)
+    report(r, 1, start + 30.0, 1, late_s=0.0)
+    assert r.update(start + 30.0) == []  # train 3 not heard of yet
+    report(r, 3, start + 50.0, 0, late_s=0.0)
+    sent = dict(r.update(start + 50.0))  # all three heard: no need to wait every_s
+    assert set(sent) == {2, 3}
+    assert r.log[-1]["t_s"] == start + 50.0
+
+
+def test_trains_not_yet_away_or_long_due_at_their_destination_are_not_waited_for() -> None:
+    r = three_up()
+    start = T0 + 700.0  # train 3 leaves at T0 + 1200: not waited for
+    r.update(start)
+    report(r, 1, start + 10.0, 0, late_s=0.0)
+    report(r, 2, start + 20.0, 0, late_s=600.0)
+    assert dict(r.update(start + 20.0)).keys() == {2, 3}
+    # train 1 was due at its destination long ago and never said so (its link down)
+    later = three_up()
+    t1 = later.trains[1]
+    late_start = t1.arrivals_s[-1] + later.settings.off_plan_s + 1.0
+    later.update(late_start)
+    report(later, 2, late_start + 10.0, 2, late_s=0.0)
+    report(later, 3, late_start + 10.0, 1, late_s=100.0)
+    assert later._heard_from_all(late_start + 10.0)
+    # while one it does wait for keeps it waiting, up to every_s
+    waiting = three_up()
+    waiting.update(start)
+    report(waiting, 2, start + 20.0, 0, late_s=600.0)
+    assert waiting.update(start + 20.0) == []
+    assert waiting.update(start + waiting.settings.every_s - 1.0) == []
+    assert waiting.update(start + waiting.settings.every_s) != []
+
+
 def test_a_train_on_its_last_section_does_not_trigger_but_bounds_the_one_behind() -> None:
     r = retimer(train(1, T0), train(2, T0 + 600.0))
     r.update(T0)

@@ -12,9 +12,12 @@ When
     to more than ``off_plan_s`` from the plan in force (the timetable, or the last
     re-timing's times), either way; or if a train that has arrived at a station is still
     there ``off_plan_s`` after the plan in force has it leave (held by a failure or a red
-    signal: on time in, late out). Not in the first ``every_s`` of a retimer (a ground
-    that has just started, or restarted, waits for every running train's report: they
-    come at least once a minute).
+    signal: on time in, late out). A retimer that has just started (a ground started, or
+    restarted) first waits for a report from every train its timetable has on the line
+    (departed from its origin, not yet due at its destination plus ``off_plan_s``; they
+    report at least once a minute), or ``every_s`` at most: re-timing some of the trains
+    of a direction without knowing where the others are would bind them to a plan that
+    ignores them.
 Who
     The front-most such train of a direction and every train behind it in that direction
     (the order of the timetable's departures: on a fixed-block line trains do not
@@ -271,7 +274,9 @@ class OnlineRetimer:
         if self._started_s is None:
             self._started_s = now_s
         every = self.settings.every_s
-        if now_s - self._last_s < every or now_s - self._started_s < every:
+        if now_s - self._last_s < every:
+            return []
+        if now_s - self._started_s < every and not self._heard_from_all(now_s):
             return []
         off = self.off_plan(now_s)
         if not off:
@@ -283,6 +288,17 @@ class OnlineRetimer:
             if front is not None:
                 out += self._retime(front, now_s)
         return out
+
+    def _heard_from_all(self, now_s: float) -> bool:
+        """Every train the timetable has on the line at ``now_s`` has reported to this
+        retimer (or is done)."""
+        late = self.settings.off_plan_s
+        for train_id, t in self.trains.items():
+            if train_id in self._progress or train_id in self._done:
+                continue
+            if t.departures_s[0] <= now_s < t.arrivals_s[-1] + late:
+                return False
+        return True
 
     def _order_key(self, train_id: int) -> tuple[bool, float, float]:
         """Front first: by direction, then how far along the line the train is (its
