@@ -52,7 +52,7 @@ from . import live_ground, live_train
 from .channel import ChannelCounters, channel_totals
 from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
-from .live_wire import MAX_LINE, receive, send
+from .live_wire import MAX_LINE, hello_name, receive, send
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
 from .trackside import CabView, Trackside, TrainSeen
 
@@ -135,6 +135,8 @@ class _LiveRun:
         self.seed = scenario.seed if options.seed is None else options.seed
         self.store_path = store_path
         self.token = options.token or secrets.token_urlsafe(16)
+        #: what each process's hello on the control wire must carry (cosim/live_wire.py)
+        self.secret = secrets.token_urlsafe(32)
         end = scenario.duration_s
         self.end_s = end if options.until_s is None else min(options.until_s, end)
         self.services = {s.train_id: s for s in scenario.services}
@@ -172,7 +174,9 @@ class _LiveRun:
         try:
             self._start_ground(None)
             for train_id in self.services:
-                args = live_train.TrainArgs(self.control_port, self.path, self.seed, train_id)
+                args = live_train.TrainArgs(
+                    self.control_port, self.path, self.seed, train_id, self.secret
+                )
                 process = self.context.Process(
                     target=live_train.run, args=(args,), name=f"train {train_id}", daemon=True
                 )
@@ -234,6 +238,7 @@ class _LiveRun:
             self.seed,
             self.store_path,
             self.token,
+            self.secret,
             start_at_s=start_at_s,
             **self.ports,
         )
@@ -297,11 +302,14 @@ class _LiveRun:
     # ------------------------------------------------------------------ the wire
 
     async def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
-        hello = await receive(reader)
-        if hello is None or hello.get("op") != "hello":
+        try:
+            hello = await receive(reader)
+        except ValueError:  # not JSON, or not an object: not one of ours
+            hello = None
+        name = hello_name(hello, self.secret, self.services)
+        if name is None:
             writer.close()
             return
-        name: int | str = "ground" if hello["role"] == "ground" else int(hello["train"])
         self.writers[name] = writer
         if not self.hello[name].done():
             self.hello[name].set_result(None)

@@ -36,6 +36,8 @@ class GroundArgs:
     seed: int
     store_path: str
     token: str
+    #: the run's control-wire secret (cosim/live_wire.py)
+    secret: str
     #: the ports (0: any free one, the first start; a restart takes the same again)
     link_port: int = 0
     http_port: int = 0
@@ -55,7 +57,7 @@ async def _main(args: GroundArgs) -> None:
     scenario = load_scenario(args.scenario_path)
     keys = line_keys(scenario, args.seed)
     reader, writer = await connect(args.control_port)
-    await send(writer, {"op": "hello", "role": "ground"})
+    await send(writer, {"op": "hello", "role": "ground", "secret": args.secret})
     start = await receive(reader)
     if start is None:
         return

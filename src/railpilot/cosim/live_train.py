@@ -51,6 +51,8 @@ class TrainArgs:
     scenario_path: str
     seed: int
     train_id: int
+    #: the run's control-wire secret (cosim/live_wire.py)
+    secret: str
 
 
 class ChannelRadio:
@@ -91,7 +93,8 @@ async def _main(args: TrainArgs) -> None:
     driver, config = line_train(scenario, service, True)
     epoch = scenario.epoch_s
     reader, writer = await connect(args.control_port)
-    await send(writer, {"op": "hello", "role": "train", "train": args.train_id})
+    hello = {"op": "hello", "role": "train", "train": args.train_id, "secret": args.secret}
+    await send(writer, hello)
     start = await receive(reader)
     if start is None:
         return

@@ -37,7 +37,7 @@ def missing_browser() -> str | None:
 
 def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0) -> dict[str, Any]:
     """A full-page screenshot of the dashboard at ``url`` into ``path`` once it shows
-    ``trains`` trains (a live line run's, cosim/live.py); what it showed, or why none was
+    at least ``trains`` trains (a live line run's, cosim/live.py); what it showed, or why none was
     taken (``skipped``)."""
     missing = missing_browser()
     if missing is not None:
@@ -52,7 +52,11 @@ def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0
             page = browser.new_page(viewport={"width": 1600, "height": 1000})
             page.goto(url)
             rows = page.locator("#trains tbody tr[data-train]")
-            expect(rows).to_have_count(trains, timeout=wait_s * 1000)
+            # at least the trains the run knows on the line: the page may also still list
+            # one that has just finished (the ground drops it when it deregisters), and an
+            # exact count failed on a busy machine (3 rows for 2)
+            if trains > 0:
+                expect(rows.nth(trains - 1)).to_be_attached(timeout=wait_s * 1000)
             page.screenshot(path=str(path), full_page=True)
             shown = rows.count()
         finally:
