@@ -36,9 +36,9 @@ def missing_browser() -> str | None:
 
 
 def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0) -> dict[str, Any]:
-    """A full-page screenshot of the dashboard at ``url`` into ``path`` once it shows
-    at least ``trains`` trains (a live line run's, cosim/live.py); what it showed, or why none was
-    taken (``skipped``)."""
+    """A full-page screenshot of the dashboard at ``url`` into ``path`` once it shows at
+    least ``trains`` trains (a live line run's, cosim/live.py); what it showed, or why
+    none was taken (``skipped``)."""
     missing = missing_browser()
     if missing is not None:
         return {"screenshot": None, "skipped": missing}
@@ -52,9 +52,9 @@ def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0
             page = browser.new_page(viewport={"width": 1600, "height": 1000})
             page.goto(url)
             rows = page.locator("#trains tbody tr[data-train]")
-            # at least the trains the run knows on the line: the page may also still list
-            # one that has just finished (the ground drops it when it deregisters), and an
-            # exact count failed on a busy machine (3 rows for 2)
+            # at least the trains the run knows on the line: the page also lists, greyed,
+            # a train that has left it, and an exact count failed on a busy machine (3
+            # rows for 2 on the line)
             if trains > 0:
                 expect(rows.nth(trains - 1)).to_be_attached(timeout=wait_s * 1000)
             page.screenshot(path=str(path), full_page=True)
