@@ -206,3 +206,20 @@ def test_the_empty_train_climbs_to_its_stop_on_time(origin: int, to: int) -> Non
     i = np.searchsorted(r["position_m"], stop_s - 1000.0)
     planned = np.interp(r["position_m"][i], outcome.plan.s_m, outcome.plan.speed_mps)
     assert r["speed_mps"][i] == pytest.approx(planned, abs=kmh_to_mps(2.0))
+
+
+def test_the_stop_law_brakes_for_a_limit_before_the_stop() -> None:
+    """The empty train into station 1 with a TSR received on the way: its re-planned
+    curve brakes from 75 to 40 km/h for the station's 45 km/h throat about 2 km before
+    the stop, while the stop law has already latched. Its held command lands the train at
+    the stop and knows nothing of the throat: 11.7 km/h over the limit at the head (0.9
+    before the climb's mend). The stop law now brakes as tracking asks when the reference
+    brakes for a lower limit and harder."""
+    from railpilot.onboard.drive import heavy_haul_empty
+
+    tsr = TsrRequest(14_000.0, 16_000.0, kmh_to_mps(45.0), 300.0)
+    outcome = drive(LINE, heavy_haul_empty(), 2, 1, tsrs=(tsr,))
+    summary = outcome.summary()
+    assert [r["reason"] for r in summary["replans"]] == ["TSR received"]
+    assert summary["max_overspeed_kmh"] == {"head": 0.0, "tail": 0.0}
+    assert abs(summary["stop_error_m"]) <= 2.0

@@ -327,6 +327,12 @@ def pstop_step(
                 # the planned curve, which brakes to the point at its rate, on time
                 # (docs/precise-stop.md, "Climbing to a stop")
                 u = u_track
+            elif u_track < u and not braking_to_stop and ref_a < -params[P_A_ON]:
+                # the reference brakes for a lower limit before the stop (a station's
+                # throat, a TSR), harder than the held stop command: the command that
+                # lands the train at the stop knows nothing of the limit on the way
+                # (an empty train 11.7 km/h over a 45 km/h throat). Brake as tracking asks
+                u = u_track
     u_out = min(max(u, lo), hi)
 
     x_stop = math.nan
