@@ -81,9 +81,11 @@ def test_a_stranger_on_the_run_s_wire_is_closed_and_its_lines_never_read() -> No
             hello = {"op": "hello", "role": "train", "train": train, "secret": run.secret}
             await send(ours, hello)
             await send(ours, {"op": "seen", "t_s": 2.0, "finished": False})
+            # its report at the end: the run sets `reported` when it reads it, after the
+            # lines before it
+            await send(ours, {"op": "result", "train": train})
             await run.hello[train]
-            while train not in run.seen:  # its next line, read after the hello
-                await asyncio.sleep(0)
+            await run.reported[train]
             ours.close()
 
     asyncio.run(scenario())

@@ -283,19 +283,20 @@ def pstop_step(
         braking_to_stop = ref_a < -params[P_A_ON] and ref_v * ref_v >= -ref_a * (
             params[P_STOP] - ref_x
         )
+        # the deceleration the stop is braked with: the one given, or the reference's
+        given_decel = params[P_STOP_DECEL] > 0.0
+        b = params[P_STOP_DECEL] if given_decel else max(-ref_a, 0.0)
         if not stopping:
             # time to brake for the stop? At the latest onset: when braking at the stop
             # deceleration from now on (the build-up included) would no longer stop short
             # of the point, as a driver brakes. With a given stop deceleration (a planned
             # curve's, which knows nothing of the air brake's build-up) that is looked for
             # ahead of the reference's own braking, within reach of the point
-            b = params[P_STOP_DECEL]
-            if b > 0.0:
+            if given_decel:
                 slack = max(b - max(net, 0.0), 0.01)
                 reach = v * v / (2.0 * slack) + 2.0 * v * (s_sigma + s_tau)
                 look = params[P_STOP] - x <= 1.5 * reach
             else:
-                b = -ref_a
                 look = braking_to_stop
             if look:
                 u_onset = min(max(-b - net, lo), hi)
@@ -312,8 +313,7 @@ def pstop_step(
             u = u_stop
             # the speed one slow-path horizon from now, braking at the stop deceleration:
             # the regeneration the fast path still gives then bounds what needs no lead
-            b_stop = params[P_STOP_DECEL] if params[P_STOP_DECEL] > 0.0 else max(-ref_a, 0.0)
-            v_later = max(v - b_stop * (s_sigma + s_tau), 0.0)
+            v_later = max(v - b * (s_sigma + s_tau), 0.0)
             air_off = model[2] > -1e-6
             if u_stop > 0.0 or (air_off and u_track > u_stop >= -fast_path_limit(params, v_later)):
                 # Nothing slow to lead: the stop needs pull (a light train climbing to its
