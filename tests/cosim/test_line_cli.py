@@ -42,6 +42,7 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
         "red_signal_stops",
         "tsr_violations",
         "target_points_passed",
+        "overspeeds",
         "link",
     ):
         assert key in out, key
@@ -129,6 +130,7 @@ def _check_sweep(out, runs):
         spread = out["kpis"][key]
         assert (spread["min"], spread["median"], spread["max"]) == tuple(values), key
     assert out["runs_with_tsr_violations"] == sum(1 for r in runs.values() if r["tsr_violations"])
+    assert out["runs_with_overspeeds"] == sum(1 for r in runs.values() if r["overspeeds"])
 
 
 def test_a_sweep_summarises_the_runs_it_would_give_one_by_one(tiny_runs, capsys):

@@ -69,6 +69,8 @@ def test_nothing_unsafe_and_every_tsr_applied_once(advised):
     kpis = advised.kpis()
     assert kpis["tsr_violations"] == 0, advised.tsr_violations
     assert kpis["target_points_passed"] == 0, advised.signals_passed_at_red
+    assert kpis["overspeeds"] == 0, advised.overspeeds
+    assert kpis["max_overspeed_kmh"] == 0.0
     # every train was concerned by the TSR (all run through km 14-17) and applied it once
     for train_id, sessions in advised.tsr_applied.items():
         assert sessions == {1: 1}, (train_id, sessions)
@@ -122,6 +124,7 @@ def test_the_baseline_runs_the_same_day_without_advice(day, advised):
     assert kpis["baseline_energy_kwh"] == base.kpis()["energy_kwh"]
     assert kpis["baseline"]["tsr_violations"] == 0
     assert kpis["baseline"]["target_points_passed"] == 0
+    assert kpis["baseline"]["overspeeds"] == 0, base.overspeeds
     # the baseline drives to the limits: its first train (ahead of the failure's effects
     # on it) runs the first section faster than the advised plan
     assert (

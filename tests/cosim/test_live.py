@@ -68,6 +68,7 @@ def test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance(runs
         assert kpis["tsr_violations"] == 0
         assert kpis["target_points_passed"] == 0
         assert kpis["tsr_applied_twice"] == 0
+        assert kpis["overspeeds"] == 0
     assert live["trains"].keys() == cosim["trains"].keys()
     for train, ours in live["trains"].items():
         theirs = cosim["trains"][train]

@@ -23,6 +23,8 @@ SWEPT = (
     "red_signal_stops",
     "tsr_violations",
     "target_points_passed",
+    "overspeeds",
+    "max_overspeed_kmh",
     "tsr_applied_twice",
     "link.link_failures",
     "link.connects",
@@ -207,6 +209,7 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
         "kpis": {},
         "runs_with_tsr_violations": sum(1 for r in results if r["tsr_violations"]),
         "runs_with_target_points_passed": sum(1 for r in results if r["target_points_passed"]),
+        "runs_with_overspeeds": sum(1 for r in results if r["overspeeds"]),
     }
     for key in SWEPT:
         values = [v for v in (_dig(r, key) for r in results) if v is not None]
@@ -233,6 +236,7 @@ def _collect(
         log(
             f"seed {seed}: {kpis['tsr_violations']} TSR violations,"
             f" {kpis['target_points_passed']} target points passed,"
+            f" {kpis['overspeeds']} overspeeds,"
             f" {kpis['energy_kwh']} kWh ({len(by_seed)}/{runs},"
             f" {time.perf_counter() - started:.0f} s)"
         )
@@ -265,6 +269,7 @@ def _print_text(out: dict[str, Any]) -> None:
             )
         print(f"  runs with TSR violations: {out['runs_with_tsr_violations']}")
         print(f"  runs with target points passed: {out['runs_with_target_points_passed']}")
+        print(f"  runs with overspeeds: {out['runs_with_overspeeds']}")
         return
     print(
         f"{out['scenario']} (seed {out['seed']}): {len(out['trains'])} trains, {out['sim_s']:.0f} s"
@@ -275,6 +280,6 @@ def _print_text(out: dict[str, Any]) -> None:
     if "baseline_energy_kwh" in out:
         line += f" (baseline {out['baseline_energy_kwh']} kWh)"
     print(line)
-    for key in ("red_signal_stops", "tsr_violations", "target_points_passed"):
+    for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "overspeeds"):
         print(f"  {key.replace('_', ' ')}: {out[key]}")
     print(f"  link failures: {out['link']['link_failures']}, connects: {out['link']['connects']}")

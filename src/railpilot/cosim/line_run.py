@@ -30,6 +30,11 @@ KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
 ``target_points_passed``
     signals a train's head passed while the block beyond was held by another train (at
     red), checked every second against the previous second's occupancy.
+``overspeeds``
+    spells (consecutive samples, every second) in which a moving train was faster than
+    the line's static limit for its category anywhere between its tail and its head
+    (trackside.py ``static_overspeeds``); ``max_overspeed_kmh`` the worst excess, per
+    train and overall.
 ``link``
     the link's counters (frames, losses by cause, resends, timeouts, rejections by check).
 """
@@ -52,7 +57,7 @@ from .driver import SectionRun, Service, TrainDriver
 from .link_sim import LinkSim, SimTrain
 from .retiming import retimer_factory
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
-from .trackside import Trackside, TrainSeen
+from .trackside import Trackside, TrainSeen, TrainShape
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
@@ -105,6 +110,8 @@ class LineResult:
     trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
     tsr_violations: list[dict[str, Any]]
     signals_passed_at_red: list[dict[str, Any]]
+    #: spells above the static limits (trackside.py ``static_overspeeds``)
+    overspeeds: list[dict[str, Any]]
     link: dict[str, Any]
     tsr_applied: dict[int, dict[int, int]]  # train -> session -> times applied
     wall_s: float
@@ -134,6 +141,10 @@ class LineResult:
         all_sections: list[float] = []
         end_to_end: list[float] = []
         total_energy = against_air = 0.0
+        worst_excess: dict[int, float] = {}
+        for spell in self.overspeeds:
+            train = spell["train"]
+            worst_excess[train] = max(worst_excess.get(train, 0.0), spell["excess_kmh"])
         for train_id, driver in sorted(self.drivers.items()):
             sections = driver.sections
             per_section = [
@@ -159,6 +170,7 @@ class LineResult:
                 "energy_regenerated_kwh": round(sum(s.energy_regenerated_kwh for s in sections), 1),
                 "energy_traction_against_air_kwh": round(wasted, 1),
                 "red_signal_stops": driver.red_signal_stops,
+                "max_overspeed_kmh": worst_excess.get(train_id, 0.0),
                 "running_times_received": driver.running_times_received,
                 "arrival_delay_s": None,
             }
@@ -188,6 +200,8 @@ class LineResult:
             "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
             "tsr_violations": len(self.tsr_violations),
             "target_points_passed": len(self.signals_passed_at_red),
+            "overspeeds": len(self.overspeeds),
+            "max_overspeed_kmh": max(worst_excess.values(), default=0.0),
             "tsr_applied_twice": sum(
                 1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
             ),
@@ -210,6 +224,8 @@ class LineResult:
                     "red_signal_stops",
                     "tsr_violations",
                     "target_points_passed",
+                    "overspeeds",
+                    "max_overspeed_kmh",
                 )
             }
         return out
@@ -331,6 +347,7 @@ def run_line(
         watch.trackside.traces(),
         watch.trackside.tsr_violations,
         watch.trackside.passed_at_red,
+        watch.trackside.overspeeds(),
         sim.link_report(),
         {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
         wall,
@@ -393,7 +410,11 @@ class _Watch:
         self.drivers = drivers
         self.on_watch = on_watch
         self.trackside = Trackside(
-            sim.line, {i: (d.direction, d.preset.train.length_m) for i, d in drivers.items()}
+            sim.line,
+            {
+                i: TrainShape(d.direction, d.preset.train.length_m, d.preset.category)
+                for i, d in drivers.items()
+            },
         )
         self._retired: set[int] = set()
 

@@ -54,7 +54,7 @@ from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
 from .live_wire import MAX_LINE, hello_name, receive, send
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
-from .trackside import CabView, Trackside, TrainSeen
+from .trackside import CabView, Trackside, TrainSeen, TrainShape
 
 #: the default time scale (a 9-hour day in 9 minutes)
 DEFAULT_SPEEDUP = 60.0
@@ -143,7 +143,7 @@ class _LiveRun:
         self.context = multiprocessing.get_context("spawn")
         self.trackside = Trackside(
             scenario.line,
-            {i: (s.direction, _train_length_m(s)) for i, s in self.services.items()},
+            {i: _train_shape(s) for i, s in self.services.items()},
         )
         self.clock: LinkClock | None = None
         self.ground: Any = None  # the ground's process
@@ -466,6 +466,7 @@ class _LiveRun:
             self.trackside.traces(),
             self.trackside.tsr_violations,
             self.trackside.passed_at_red,
+            self.trackside.overspeeds(),
             link,
             {i: {int(k): v for k, v in r["tsr_applied"].items()} for i, r in self.results.items()},
             wall_s,
@@ -481,10 +482,11 @@ class _LiveRun:
         return result
 
 
-def _train_length_m(service: Service) -> float:
+def _train_shape(service: Service) -> TrainShape:
     from railpilot.onboard.drive import train_preset
 
-    return float(train_preset(service.kind).train.length_m)
+    preset = train_preset(service.kind)
+    return TrainShape(service.direction, float(preset.train.length_m), preset.category)
 
 
 def _sum_counts(dicts: list[dict[str, Any]]) -> dict[str, Any]:

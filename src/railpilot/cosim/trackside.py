@@ -1,6 +1,6 @@
 """What the line's own equipment sees, once a second: where every train is, the signals'
-aspects (the cab signal each train sees), and every TSR and red signal against what the
-trains do (issue 12; docs/line-run.md "KPIs").
+aspects (the cab signal each train sees), and every TSR, red signal and static speed
+limit against what the trains do (issue 12; docs/line-run.md "KPIs").
 
 :class:`Trackside` is the truth the KPIs come from, not what the trains or the ground
 believe. It has no transport and no clock of its own: a run hands it what it saw
@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -32,6 +32,15 @@ from railpilot.link import TravelDirection
 CAB_SIGNAL_BLOCKS = 2
 #: over a limit by more than this is a violation [m/s] (the speed sensor's resolution)
 OVERSPEED_TOLERANCE_MPS = 0.01
+
+
+class TrainShape(NamedTuple):
+    """What the trackside knows of a train before it runs: which way it goes, how long it
+    is [m], and its category (whose static speed limits it obeys, line/model.py)."""
+
+    direction: TravelDirection
+    length_m: float
+    category: str
 
 
 @dataclass
@@ -68,10 +77,10 @@ class CabView:
 class Trackside:
     """The line's equipment (module docstring).
 
-    ``trains``: every train that may run, as ``id -> (direction, length [m])``.
+    ``trains``: every train that may run, by id.
     """
 
-    def __init__(self, line: RailLine, trains: Mapping[int, tuple[TravelDirection, float]]):
+    def __init__(self, line: RailLine, trains: Mapping[int, TrainShape]):
         self.line = line
         self.trains = dict(trains)
         #: train id -> rows (t [s], head km post [m], speed [m/s]), one per look
@@ -85,6 +94,11 @@ class Trackside:
     def traces(self) -> dict[int, np.ndarray]:
         """Each train's rows (t [s], head km post [m], speed [m/s]) as an array."""
         return {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in self.trace.items()}
+
+    def overspeeds(self) -> list[dict[str, Any]]:
+        """Every spell of looks in which a train ran faster than the line's static limit
+        for its category somewhere along its length (:func:`static_overspeeds`)."""
+        return static_overspeeds(self.line, self.traces(), self.trains)
 
     def dispatched(
         self, operation: object, result: Mapping[str, Any], now_s: float, epoch_s: float
@@ -127,7 +141,7 @@ class Trackside:
         each one's cab signal shows."""
         reports = []
         for train_id, train in seen.items():
-            direction, length = self.trains[train_id]
+            direction, length, _ = self.trains[train_id]
             self.trace[train_id].append((t, train.head_m, train.speed_mps))
             reports.append(TrainReport(train_id, train.head_m, direction, length, now_s))
             self._check_tsrs(train_id, train, now_s, t)
@@ -162,7 +176,7 @@ class Trackside:
         speed = train.speed_mps
         if not self.tsrs or speed <= 0.0:
             return
-        direction, length = self.trains[train_id]
+        direction, length, _ = self.trains[train_id]
         head = train.head_m
         tail = head - direction_sign(direction) * length
         for tsr in self.tsrs:
@@ -206,3 +220,69 @@ class Trackside:
                         "held_by": others,
                     }
                 )
+
+
+def static_limit_under(line: RailLine, train: TrainShape, head_m: np.ndarray) -> np.ndarray:
+    """The lowest static limit [m/s] of ``train``'s category and direction anywhere
+    between its tail and its head, for each head km post in ``head_m`` [m].
+
+    Boundaries included (the MRSP's convention, onboard/mrsp.py): a limit rises only when
+    the tail has left the lower one, and a short slow stretch under the middle of a long
+    train counts. The part of a train beyond either end of the line (a long train starting
+    at a terminus) is held to the limit at that end.
+    """
+    edges, limits = line.static_limit(train.category, train.direction)
+    tail = head_m - direction_sign(train.direction) * train.length_m
+    low = np.clip(np.minimum(head_m, tail), edges[0], edges[-1])
+    high = np.clip(np.maximum(head_m, tail), edges[0], edges[-1])
+    # pieces (edges[k], edges[k+1]) the closed stretch [low, high] touches: from the first
+    # whose end is at or past low to the last whose start is at or before high
+    last_piece = len(limits) - 1
+    first = np.clip(np.searchsorted(edges, low, side="left") - 1, 0, last_piece)
+    last = np.clip(np.searchsorted(edges, high, side="right") - 1, first, last_piece)
+    # the minimum over pieces first..last of every head at once: reduceat takes it over
+    # padded[first:last + 1] at the even positions
+    padded = np.append(limits, np.inf)
+    bounds = np.empty(2 * len(low), dtype=np.intp)
+    bounds[0::2], bounds[1::2] = first, last + 1
+    return np.minimum.reduceat(padded, bounds)[0::2]
+
+
+def static_overspeeds(
+    line: RailLine, traces: Mapping[int, np.ndarray], trains: Mapping[int, TrainShape]
+) -> list[dict[str, Any]]:
+    """The spells in which a train, moving, was faster than :func:`static_limit_under`
+    (the lowest static limit along it) by more than :data:`OVERSPEED_TOLERANCE_MPS`.
+
+    ``traces``: each train's rows (t [s], head km post [m], speed [m/s]), one per look.
+    Returns one entry per spell (consecutive looks over), in train then time order: the
+    train, the spell's first and last look [s], and its worst look: ``t_s``, the head's
+    km post, the speed and the limit [km/h] and the excess [km/h].
+    """
+    out: list[dict[str, Any]] = []
+    for train_id, rows in sorted(traces.items()):
+        if not len(rows):
+            continue
+        t, head, speed = rows[:, 0], rows[:, 1], rows[:, 2]
+        limit = static_limit_under(line, trains[train_id], head)
+        excess = speed - limit
+        over = (speed > 0.0) & (excess > OVERSPEED_TOLERANCE_MPS)
+        if not over.any():
+            continue
+        # spells: runs of consecutive looks over the limit
+        change = np.flatnonzero(np.diff(over.astype(np.int8), prepend=0, append=0))
+        for start, stop in zip(change[0::2], change[1::2], strict=True):
+            worst = start + int(np.argmax(excess[start:stop]))
+            out.append(
+                {
+                    "train": train_id,
+                    "from_s": float(t[start]),
+                    "to_s": float(t[stop - 1]),
+                    "t_s": float(t[worst]),
+                    "head_km": round(float(head[worst]) / 1000.0, 3),
+                    "speed_kmh": round(float(speed[worst]) * 3.6, 2),
+                    "limit_kmh": round(float(limit[worst]) * 3.6, 2),
+                    "excess_kmh": round(float(excess[worst]) * 3.6, 2),
+                }
+            )
+    return out

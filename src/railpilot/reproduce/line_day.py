@@ -215,6 +215,7 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
     )
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
         row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
+    row("overspeeds above the static limits", advised["overspeeds"], baseline["overspeeds"])
     row("trains finished", _finished(advised), _finished(baseline))
     ra, rb = advised.get("retiming"), baseline.get("retiming")
     if ra is not None and rb is not None:
@@ -352,10 +353,11 @@ def findings(advised: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
         f"Trains at their destination by the end of the day: {fa} of {n} advised, "
         f"{fb} of {n} baseline."
     )
-    safety = ("tsr_violations", "target_points_passed", "tsr_applied_twice")
+    safety = ("tsr_violations", "target_points_passed", "tsr_applied_twice", "overspeeds")
     if all(kpis[k] == 0 for kpis in (advised, baseline) for k in safety):
         out.append(
-            "No TSR violation, no target point passed and no TSR applied twice, in either run."
+            "No TSR violation, no target point passed, no TSR applied twice and no overspeed "
+            "above the static limits, in either run."
         )
     else:
         counts = ", ".join(

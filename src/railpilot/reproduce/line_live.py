@@ -95,7 +95,7 @@ def train_table(live: dict[str, Any], cosim: dict[str, Any], note: str) -> Table
                 "yes" if ours["finished"] else "no",
             ]
         )
-    for key in ("tsr_violations", "target_points_passed", "tsr_applied_twice"):
+    for key in ("tsr_violations", "target_points_passed", "tsr_applied_twice", "overspeeds"):
         rows.append([key.replace("_", " "), "", "", "", "", live[key], cosim[key], ""])
     return Table(
         "Live against co-simulated, per train",
@@ -173,9 +173,12 @@ def findings(live: dict[str, Any], cosim: dict[str, Any], seen: dict[str, Any]) 
             f"Every train's end-to-end conformity within {CONFORMITY_PP:g} percentage point and "
             f"energy within {ENERGY_REL:.0%} of the co-simulation's."
         )
-    safety = [k for k in ("tsr_violations", "target_points_passed") if live[k] or cosim[k]]
+    safety = [
+        k for k in ("tsr_violations", "target_points_passed", "overspeeds") if live[k] or cosim[k]
+    ]
     out.append(
-        "No TSR violation and no target point passed, live or co-simulated."
+        "No TSR violation, no target point passed and no overspeed above the static limits, "
+        "live or co-simulated."
         if not safety
         else f"Safety KPIs not 0: {', '.join(safety)} (see the table)."
     )
