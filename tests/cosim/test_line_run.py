@@ -8,6 +8,7 @@ of one station pair is ``railpilot drive``'s.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import pickle
 from pathlib import Path
@@ -19,9 +20,10 @@ from numpy.testing import assert_allclose
 from railpilot.cosim.driver import TrainDriver
 from railpilot.cosim.line_run import line_train, run_line
 from railpilot.cosim.scenario import load_scenario, scenario_from_mapping
+from railpilot.cosim.trackside import OVERSPEED_TOLERANCE_MPS, TrainShape, static_limit_under
 from railpilot.errors import ConfigError
 from railpilot.link import TravelDirection
-from railpilot.onboard.drive import drive, heavy_haul_loaded
+from railpilot.onboard.drive import drive, heavy_haul_loaded, train_preset
 
 BASE = {
     "name": "test day",
@@ -63,6 +65,11 @@ def day():
 @pytest.fixture(scope="module")
 def advised(day):
     return run_line(day)
+
+
+@pytest.fixture(scope="module")
+def baseline(day):
+    return run_line(day, advised=False)
 
 
 def test_nothing_unsafe_and_every_tsr_applied_once(advised):
@@ -118,8 +125,8 @@ def test_a_result_pickles_with_its_kpis(advised):
         assert again.drivers[train_id].sections == run.sections
 
 
-def test_the_baseline_runs_the_same_day_without_advice(day, advised):
-    base = run_line(day, advised=False)
+def test_the_baseline_runs_the_same_day_without_advice(advised, baseline):
+    base = baseline
     kpis = advised.kpis(base)
     assert kpis["baseline_energy_kwh"] == base.kpis()["energy_kwh"]
     assert kpis["baseline"]["tsr_violations"] == 0
@@ -131,6 +138,33 @@ def test_the_baseline_runs_the_same_day_without_advice(day, advised):
         base.drivers[101].sections[0].running_time_s
         < advised.drivers[101].sections[0].running_time_s
     )
+
+
+def test_the_static_limits_are_checked_where_the_trains_reach_them(day, baseline):
+    """The baseline drives to the static limits less the scenario's margin (5 km/h), so
+    its 0 overspeeds is not for want of speed: each train comes closer to the lowest limit
+    along it than the margin somewhere (measured: 3.1-3.3 km/h below)."""
+    for service in day.services:
+        rows = baseline.trace[service.train_id]
+        preset = train_preset(service.kind)
+        shape = TrainShape(service.direction, preset.train.length_m, preset.category)
+        closest = np.max(rows[:, 2] - static_limit_under(day.line, shape, rows[:, 1]))
+        assert -day.margin_kmh / 3.6 < closest <= OVERSPEED_TOLERANCE_MPS, (service.number, closest)
+
+
+def test_the_kpis_count_the_spells_and_the_worst_excess(advised):
+    spells = [
+        {"train": 101, "excess_kmh": 1.5},
+        {"train": 101, "excess_kmh": 4.0},
+        {"train": 102, "excess_kmh": 0.5},
+    ]
+    kpis = dataclasses.replace(advised, overspeeds=spells).kpis(baseline=advised)
+    assert kpis["overspeeds"] == 3
+    assert kpis["max_overspeed_kmh"] == 4.0
+    assert kpis["trains"]["101"]["max_overspeed_kmh"] == 4.0
+    assert kpis["trains"]["102"]["max_overspeed_kmh"] == 0.5
+    assert kpis["trains"]["103"]["max_overspeed_kmh"] == 0.0
+    assert kpis["baseline"]["overspeeds"] == 0
 
 
 def test_one_station_pair_is_driven_as_railpilot_drive_does():
