@@ -109,7 +109,7 @@ N_STATE = 11
 #: the prediction's step is the model's horizon over this, at least a control period
 _PREDICTION_STEPS_PER_HORIZON = 16.0
 #: and at least this many steps to rest braking at the stop deceleration
-_PREDICTION_STEPS_TO_STOP = 40.0
+_PREDICTION_STEPS_TO_STOP = 10.0
 #: and it predicts at most this many steps (a command that never stops the train)
 _MAX_PREDICTION_STEPS = 6000
 #: bisection iterations for the stop command (interval / 2^24: micro-m/s^2)
@@ -292,7 +292,8 @@ def pstop_step(
             # a stop regeneration brakes alone: the air stays off until regeneration
             # fades, and the fade decides where the train comes to rest. The prediction
             # must see it: a sixteenth of an empty train's 61 s air horizon is 3.8 s, its
-            # last 5 km/h in four steps (it stopped 0.26-0.32 m beyond the point)
+            # last 5 km/h in four steps (it stopped 0.26-0.32 m beyond the point). Finer
+            # below 3.8 m/s only, where the fade is (docs/precise-stop.md)
             step = max(min(step, v / (_PREDICTION_STEPS_TO_STOP * b)), dt)
         if not stopping:
             # time to brake for the stop? At the latest onset: when braking at the stop
