@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from railpilot.cli import main
-from railpilot.commands.line import _quantile
+from railpilot.commands.line import _dig, _quantile
 
 TINY = """
 name = "tiny"
@@ -129,6 +129,9 @@ def _check_sweep(out, runs):
     ):
         spread = out["kpis"][key]
         assert (spread["min"], spread["median"], spread["max"]) == tuple(values), key
+        by_seed = {seed: _dig(run, key) for seed, run in runs.items()}
+        assert by_seed[spread["min_seed"]] == spread["min"], key
+        assert by_seed[spread["max_seed"]] == spread["max"], key
     assert out["runs_with_tsr_violations"] == sum(1 for r in runs.values() if r["tsr_violations"])
     assert out["runs_with_overspeeds"] == sum(1 for r in runs.values() if r["overspeeds"])
 

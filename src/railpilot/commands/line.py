@@ -212,9 +212,11 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
         "runs_with_overspeeds": sum(1 for r in results if r["overspeeds"]),
     }
     for key in SWEPT:
-        values = [v for v in (_dig(r, key) for r in results) if v is not None]
-        if values:
-            values.sort()
+        found = [
+            (v, s) for s, r in zip(seeds, results, strict=True) if (v := _dig(r, key)) is not None
+        ]
+        if found:
+            values = sorted(v for v, _ in found)
             out["kpis"][key] = {
                 "min": values[0],
                 "p5": _quantile(values, 0.05),
@@ -222,6 +224,9 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
                 "p95": _quantile(values, 0.95),
                 "max": values[-1],
                 "mean": round(sum(values) / len(values), 4),
+                # which runs to look at again: the first seed giving each extreme
+                "min_seed": min(found)[1],
+                "max_seed": max(found, key=lambda pair: (pair[0], -pair[1]))[1],
             }
     return out
 
