@@ -282,9 +282,8 @@ def pstop_step(
     if not math.isnan(params[P_STOP]) and v > 0.0:
         # the reference decelerates, and to this stop: its mean deceleration to the point
         # is at least half its present one (not a braking to a limit far before it)
-        braking_to_stop = ref_a < -params[P_A_ON] and ref_v * ref_v >= -ref_a * (
-            params[P_STOP] - ref_x
-        )
+        reference_brakes = ref_a < -params[P_A_ON]
+        braking_to_stop = reference_brakes and ref_v * ref_v >= -ref_a * (params[P_STOP] - ref_x)
         # the deceleration the stop is braked with: the one given, or the reference's
         given_decel = params[P_STOP_DECEL] > 0.0
         b = params[P_STOP_DECEL] if given_decel else max(-ref_a, 0.0)
@@ -336,7 +335,7 @@ def pstop_step(
                 # the planned curve, which brakes to the point at its rate, on time
                 # (docs/precise-stop.md, "Climbing to a stop")
                 u = u_track
-            elif u_track < u and not braking_to_stop and ref_a < -params[P_A_ON]:
+            elif u_track < u and reference_brakes and not braking_to_stop:
                 # the reference brakes for a lower limit before the stop (a station's
                 # throat, a TSR), harder than the held stop command: the command that
                 # lands the train at the stop knows nothing of the limit on the way

@@ -57,7 +57,7 @@ from .driver import SectionRun, Service, TrainDriver
 from .link_sim import LinkSim, SimTrain
 from .retiming import retimer_factory
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
-from .trackside import Trackside, TrainSeen, TrainShape
+from .trackside import Trackside, TrainSeen, TrainShape, static_overspeeds
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
@@ -339,15 +339,16 @@ def run_line(
     wall = time.perf_counter() - started
     audit_log, snapshot = store.audit_log(), store.load()
     store.close()
+    traces = watch.trackside.traces()
     return LineResult(
         scenario,
         seed,
         advised,
         {i: TrainRun.of(driver) for i, driver in drivers.items()},
-        watch.trackside.traces(),
+        traces,
         watch.trackside.tsr_violations,
         watch.trackside.passed_at_red,
-        watch.trackside.overspeeds(),
+        static_overspeeds(scenario.line, traces, watch.trackside.trains),
         sim.link_report(),
         {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
         wall,

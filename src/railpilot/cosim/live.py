@@ -54,7 +54,7 @@ from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
 from .live_wire import MAX_LINE, hello_name, receive, send
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
-from .trackside import CabView, Trackside, TrainSeen, TrainShape
+from .trackside import CabView, Trackside, TrainSeen, TrainShape, static_overspeeds
 
 #: the default time scale (a 9-hour day in 9 minutes)
 DEFAULT_SPEEDUP = 60.0
@@ -458,15 +458,16 @@ class _LiveRun:
             audit_log, snapshot = store.audit_log(), store.load()
         finally:
             store.close()
+        traces = self.trackside.traces()
         result = LineResult(
             self.scenario,
             self.seed,
             True,
             drivers,
-            self.trackside.traces(),
+            traces,
             self.trackside.tsr_violations,
             self.trackside.passed_at_red,
-            self.trackside.overspeeds(),
+            static_overspeeds(self.scenario.line, traces, self.trackside.trains),
             link,
             {i: {int(k): v for k, v in r["tsr_applied"].items()} for i, r in self.results.items()},
             wall_s,

@@ -95,11 +95,6 @@ class Trackside:
         """Each train's rows (t [s], head km post [m], speed [m/s]) as an array."""
         return {i: np.asarray(rows, dtype=float).reshape(-1, 3) for i, rows in self.trace.items()}
 
-    def overspeeds(self) -> list[dict[str, Any]]:
-        """Every spell of looks in which a train ran faster than the line's static limit
-        for its category somewhere along its length (:func:`static_overspeeds`)."""
-        return static_overspeeds(self.line, self.traces(), self.trains)
-
     def dispatched(
         self, operation: object, result: Mapping[str, Any], now_s: float, epoch_s: float
     ) -> dict[str, Any] | None:
