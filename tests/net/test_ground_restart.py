@@ -383,7 +383,12 @@ def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
             restored = restarted.logged("restored")
             assert restored is not None and "trains=3 tsrs=1" in restored, restored
             if clean:
-                assert "active=2 pending_set=1" in restored, restored
+                # the deliveries by state, read by key: the states are counted over TSRs,
+                # target points and dispatch commands together and logged in name order,
+                # so a target point still PENDING at the kill logs "pending=1" between
+                # the TSRs' "active" and "pending_set" (CI failed once on that)
+                counts = dict(field.split("=", 1) for field in restored.split() if "=" in field)
+                assert (counts["active"], counts["pending_set"]) == ("2", "1"), restored
             else:
                 assert "pending_set=" in restored, restored
             trains.start(OFFLINE)  # the offline train comes back
