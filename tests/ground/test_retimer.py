@@ -25,8 +25,14 @@ from railpilot.ground.retimer import (
     timetabled,
 )
 from railpilot.line import load_line
-from railpilot.link import TrainRegistered
-from railpilot.link.messages import PlannedCurve, RegisterRequest, RunningTimes
+from railpilot.link import MessageReceived, TrainRegistered
+from railpilot.link.messages import (
+    PlannedCurve,
+    RegisterRequest,
+    RunningInfo,
+    RunningTimes,
+    TravelDirection,
+)
 
 PLANNED_S = 1000.0
 FASTEST_S = 800.0
@@ -324,3 +330,80 @@ def test_a_train_held_at_a_station_past_its_departure_is_retimed_from_now() -> N
     assert r.off_plan(now + 100.0) == []
     # ... and off it again once it has stood off_plan_s longer
     assert r.off_plan(now + 121.0) == [1]
+
+
+def test_a_train_seen_leaving_on_time_is_not_held_though_its_report_was_lost() -> None:
+    # on time in at station 2, due out at T0 + 1120, leaves on time; the report of its new
+    # section is lost, but its running info shows it moving: it is not held at the station
+    # (the case before: test_a_train_held_at_a_station_past_its_departure_is_retimed_from_now)
+    r = retimer(train(1, T0))
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    r.running(1, 0.0, T0 + 1119.0)  # standing: nothing new
+    r.running(1, 0.3, T0 + 1121.0)
+    now = T0 + 1120.0 + 200.0
+    assert r.off_plan(now) == []
+    assert r.update(now) == []
+    # it runs section 2-3 in the plan's time from T0 + 1121, due at T0 + 2121; off plan
+    # once it has not arrived off_plan_s after the plan's arrival, T0 + 2120
+    assert r.off_plan(T0 + 2120.0 + 120.0 - 1e-6) == []
+    assert r.off_plan(T0 + 2120.0 + 120.0 + 1e-3) == [1]
+
+
+def test_without_the_running_info_the_same_train_looks_held() -> None:
+    # the control for the test above: the same reports, no running info
+    r = retimer(train(1, T0))
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    assert r.off_plan(T0 + 1120.0 + 200.0) == [1]
+
+
+def test_a_train_seen_leaving_late_is_retimed_for_what_it_has_left() -> None:
+    r = retimer(train(1, T0))
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    left = T0 + 1120.0 + 150.0  # 150 s late out of station 2
+    r.running(1, 0.3, left)
+    assert r.off_plan(left) == [1]
+    sent = dict(r.update(left))
+    times = times_of(sent[1])
+    # the section it runs is committed (planned from its departure); the one left, 3-4,
+    # makes up what the next dwell's margin (60 s) does not
+    assert set(times) == {(3, 4)}
+    assert times[(3, 4)] == pytest.approx(PLANNED_S - (150.0 - (DWELL_S - MIN_DWELL_S)), abs=1e-6)
+    assert r.planned_arrivals(1)[1] == pytest.approx(left + PLANNED_S)
+
+
+def test_a_report_of_a_section_it_has_been_seen_to_leave_is_stale() -> None:
+    # the minute's repeat of its arrival at station 2, delayed past the running info that
+    # shows it moving on, does not put it back at the station
+    r = retimer(train(1, T0))
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    r.running(1, 0.3, T0 + 1121.0)
+    r.report(1, PlannedCurve(1, 2, PLANNED_S, 0.0), T0 + 1122.0)
+    assert r.off_plan(T0 + 1120.0 + 200.0) == []
+    # its own report of the new section is taken (30 s late on it)
+    r.report(1, PlannedCurve(2, 3, 200.0, PLANNED_S - 200.0 + 30.0), T0 + 1321.0)
+    assert r.off_plan(T0 + 1321.0) == []
+    assert r.off_plan(T0 + 1121.0 + PLANNED_S + 30.0 + 121.0) == [1]
+
+
+def test_a_train_moving_at_its_destination_or_before_its_first_report_is_not_moved_on() -> None:
+    r = retimer(train(1, T0))
+    r.running(1, 5.0, T0 + 10.0)  # not heard of yet: nothing to move on
+    assert r.off_plan(T0 + 10.0) == []
+    arrived(r, 1, T0 + 3 * PLANNED_S + 2 * DWELL_S, 2)  # at station 4, its destination
+    r.running(1, 0.3, T0 + 4000.0)
+    assert r.off_plan(T0 + 5000.0) == []
+
+
+def test_the_dispatch_core_tells_the_retimer_of_running_info() -> None:
+    dispatch = GroundDispatch(load_line("heavy-haul"))
+    r = retimer(train(1, T0))
+    dispatch.retimer = r
+    r.update(T0)
+    arrived(r, 1, T0 + 1000.0, 0)
+    info = RunningInfo(7, "K1", "HXD10001", TravelDirection.UP, 0.3, 30_001.0)
+    dispatch.on_event(1, MessageReceived(info, 1, 0), T0 + 1121.0)
+    assert r.off_plan(T0 + 1120.0 + 200.0) == []

@@ -223,6 +223,8 @@ class GroundDispatch:
                 history = self.history[train_id]
                 if not history or now_s - history[-1][0] >= HISTORY_INTERVAL_S:
                     history.append((now_s, message.position_m))
+                if self.retimer is not None:
+                    self.retimer.running(train_id, message.speed_mps, now_s)
                 return self._route_changed(train_id, now_s)
             if isinstance(message, PlannedCurve):
                 registry.planned_curve(train_id, message, now_s)

@@ -4,7 +4,8 @@ behind it and sends them new running times (paper 001 section 2.3; issue 12 item
 :mod:`railpilot.ground.retime` solves one re-timing problem. :class:`OnlineRetimer` decides
 when to pose one and what it holds, from what the ground knows on the line: each train's
 timetable (given by the operator), its planned-curve reports (link ``PlannedCurve``: the
-station pair it runs, the time run and the time its plan still needs) and the sections'
+station pair it runs, the time run and the time its plan still needs), its running info
+(link ``RunningInfo``: whether a train standing at a station has left it) and the sections'
 energy-time curves (ground/energy.py, through ``curves``). No I/O, time passed in.
 
 When
@@ -29,15 +30,16 @@ What each train still has
     the timetable's recovery margin on saving energy, which a train's run would then
     lack when it meets what the curves do not know (a TSR, a red signal, a failure). The
     LP's energy term decides how much of its margin a late train uses. From its last
-    report: the section it runs is committed (departed at ``report time -
-    elapsed``, arriving at ``report time + remaining``); a report with nothing remaining
-    says it has arrived (at the report's time; a train standing at a station repeats it
-    once a minute, and only the first one's time is its arrival). Its remaining sections
+    report: the section it runs is committed (departed at ``report time - elapsed``,
+    arriving at ``report time + remaining``); a report with nothing remaining says it
+    has arrived (at the report's time; a train standing at a station repeats it once a
+    minute, and only the first one's time is its arrival). A train that has arrived and
+    is then seen moving in its running info has left, at that time, and runs the next
+    section in the plan's time until its report of it comes. Its remaining sections
     start at that station, no earlier than the arrival plus its minimum dwell, and, if it
-    has arrived, no earlier than now (it is still there). After a re-timing, the
-    plan in force is its times, and for the section a train runs, the arrival the
-    re-timing expected: it is off plan again only if that expectation moves. A train
-    that has not
+    has arrived, no earlier than now (it is still there). After a re-timing, the plan in
+    force is its times, and for the section a train runs, the arrival the re-timing
+    expected: it is off plan again only if that expectation moves. A train that has not
     reported has all its sections left, from its planned departure, until ``every_s``
     after that; later, where it is is not known and it is left out. A train that has
     deregistered (at its destination) is done: its last report may not have come.
@@ -221,6 +223,8 @@ class OnlineRetimer:
             return  # not a section of its timetable: nothing the ground can re-time
         arrived = report.remaining_s <= 0.0
         known = self._progress.get(train_id)
+        if known is not None and j < known.j:
+            return  # stale: the train has been heard of further along (its running info)
         if arrived and known is not None and known.arrived and known.j == j:
             # the same arrival again: a train standing at a station says so once a minute,
             # and the report's time is not its arrival's (the first such report's is)
@@ -235,6 +239,23 @@ class OnlineRetimer:
         )
         if arrived and j == len(timetable.stations) - 2:
             self._done.add(train_id)
+
+    def running(self, train_id: int, speed_mps: float, now_s: float) -> None:
+        """A train's running info, received at ``now_s``: a train the last report has
+        standing at a station that is now moving has left it.
+
+        The planned-curve report of the new section says so too, but it is sent once and
+        then only when the prediction moves or a minute has passed; with it lost, the
+        train would look held at the station and be re-timed as late (seed 77 of the
+        heavy-haul sweep, docs/results.md). Until its report comes, the train is taken to
+        have left now and to run the section in the plan's time.
+        """
+        p = self._progress.get(train_id)
+        if p is None or not p.arrived or speed_mps <= 0.0 or train_id in self._done:
+            return  # (a train arrived at its destination is done)
+        j = p.j + 1
+        planned_s = self._plan[train_id][j] - self._leave[train_id][j]
+        self._progress[train_id] = _Progress(j, now_s, now_s + planned_s, False, 0.0)
 
     def left(self, train_id: int) -> None:
         """``train_id`` deregistered (at its destination, or off the main line): it is not
