@@ -407,3 +407,26 @@ def test_the_dispatch_core_tells_the_retimer_of_running_info() -> None:
     info = RunningInfo(7, "K1", "HXD10001", TravelDirection.UP, 0.3, 30_001.0)
     dispatch.on_event(1, MessageReceived(info, 1, 0), T0 + 1121.0)
     assert r.off_plan(T0 + 1120.0 + 200.0) == []
+
+
+def test_an_arrival_heard_late_is_dated_by_the_departure_and_the_time_run() -> None:
+    # on time at station 2 (T0 + 1000); the report that says so is heard only at
+    # T0 + 1130 (the onboard reports again a minute after its last, or that one was lost)
+    r = retimer(train(1, T0))
+    r.update(T0)
+    report(r, 1, T0 + 900.0, 0, late_s=0.0)  # departed T0, due T0 + 1000
+    arrived(r, 1, T0 + 1130.0, 0)  # run in PLANNED_S: arrived at T0 + 1000
+    assert r.off_plan(T0 + 1130.0) == []
+    # its departure is due at T0 + 1120: held once it is still there 120 s after
+    assert r.off_plan(T0 + 1240.0 - 1e-6) == []
+    assert r.off_plan(T0 + 1240.0 + 1e-3) == [1]
+
+
+def test_an_arrival_heard_at_once_keeps_the_report_time() -> None:
+    # the departure as the ground knows it is never earlier than the truth (heard 10 s
+    # after it here): the report's own time, earlier, dates the arrival
+    r = retimer(train(1, T0), off_plan_s=5.0)
+    r.update(T0)
+    r.report(1, PlannedCurve(1, 2, 890.0, 100.0), T0 + 900.0)  # departed T0 + 10 to it
+    arrived(r, 1, T0 + 1000.0, 0)
+    assert r.off_plan(T0 + 1000.0) == []

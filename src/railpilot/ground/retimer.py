@@ -32,17 +32,19 @@ What each train still has
     LP's energy term decides how much of its margin a late train uses. From its last
     report: the section it runs is committed (departed at ``report time - elapsed``,
     arriving at ``report time + remaining``); a report with nothing remaining says it
-    has arrived (at the report's time; a train standing at a station repeats it once a
-    minute, and only the first one's time is its arrival). A train that has arrived and
-    is then seen moving in its running info has left, at that time, and runs the next
-    section in the plan's time until its report of it comes. Its remaining sections
-    start at that station, no earlier than the arrival plus its minimum dwell, and, if it
-    has arrived, no earlier than now (it is still there). After a re-timing, the plan in
-    force is its times, and for the section a train runs, the arrival the re-timing
-    expected: it is off plan again only if that expectation moves. A train that has not
-    reported has all its sections left, from its planned departure, until ``every_s``
-    after that; later, where it is is not known and it is left out. A train that has
-    deregistered (at its destination) is done: its last report may not have come.
+    has arrived, at its departure as known plus the time run, or the report's time if
+    that is earlier (the report can come a minute after the arrival; a train standing at
+    a station repeats it once a minute, and only the first one heard counts). A train
+    that has arrived and is then seen moving in its running info has left, at that
+    time, and runs the next section in the plan's time until its report of it comes.
+    Its remaining sections start at that station, no earlier than the arrival plus its
+    minimum dwell, and, if it has arrived, no earlier than now (it is still there).
+    After a re-timing, the plan in force is its times, and for the section a train runs,
+    the arrival the re-timing expected: it is off plan again only if that expectation
+    moves. A train that has not reported has all its sections left, from its planned
+    departure, until ``every_s`` after that; later, where it is is not known and it is
+    left out. A train that has deregistered (at its destination) is done: its last
+    report may not have come.
 What goes out
     :func:`~railpilot.ground.retime.retime` (the LP; its proportional-slack fallback if
     HiGHS fails): each train of the problem whose running times changed by more than
@@ -229,11 +231,18 @@ class OnlineRetimer:
             # the same arrival again: a train standing at a station says so once a minute,
             # and the report's time is not its arrival's (the first such report's is)
             return
+        at_s = now_s
+        if arrived and known is not None and known.j == j:
+            # the report of an arrival can come up to a minute after it (the onboard
+            # reports again when its prediction moves by a second or a minute has passed)
+            # or later (lost): the departure it knows and the section's time run date
+            # the arrival (both no earlier than the truth, as the report's time)
+            at_s = min(now_s, known.departed_s + report.elapsed_s)
         total = report.elapsed_s + report.remaining_s
         self._progress[train_id] = _Progress(
             j,
-            now_s - report.elapsed_s,
-            now_s + report.remaining_s,
+            at_s - report.elapsed_s,
+            at_s + report.remaining_s,
             arrived,
             1.0 if arrived or total <= 0.0 else report.elapsed_s / total,
         )
