@@ -35,8 +35,9 @@ What each train still has
     has arrived, at its departure as known plus the time run, or the report's time if
     that is earlier (the report can come a minute after the arrival; a train standing at
     a station repeats it once a minute, and only the first one heard counts). A train
-    that has arrived and is then seen moving in its running info has left, at that
-    time, and runs the next section in the plan's time until its report of it comes.
+    that has arrived and is then seen at rest and then moving in its running info has
+    left, at that time, and runs the next section in the plan's time until its report
+    of it comes.
     Its remaining sections start at that station, no earlier than the arrival plus its
     minimum dwell, and, if it has arrived, no earlier than now (it is still there).
     After a re-timing, the plan in force is its times, and for the section a train runs,
@@ -205,6 +206,8 @@ class OnlineRetimer:
     def __post_init__(self) -> None:
         self._progress: dict[int, _Progress] = {}
         self._done: set[int] = set()
+        #: trains at a station by their last report, seen at rest there since
+        self._standing: set[int] = set()
         #: the plan in force: per train, the arrival at each station after the first
         self._plan = {i: np.array(t.arrivals_s, dtype=float) for i, t in self.trains.items()}
         #: and the departure from each station but the last
@@ -246,22 +249,31 @@ class OnlineRetimer:
             arrived,
             1.0 if arrived or total <= 0.0 else report.elapsed_s / total,
         )
+        self._standing.discard(train_id)
         if arrived and j == len(timetable.stations) - 2:
             self._done.add(train_id)
 
     def running(self, train_id: int, speed_mps: float, now_s: float) -> None:
         """A train's running info, received at ``now_s``: a train the last report has
-        standing at a station that is now moving has left it.
+        at a station, seen at rest there and now moving, has left it.
 
         The planned-curve report of the new section says so too, but it is sent once and
         then only when the prediction moves or a minute has passed; with it lost, the
         train would look held at the station and be re-timed as late (seed 77 of the
         heavy-haul sweep, docs/results.md). Until its report comes, the train is taken to
-        have left now and to run the section in the plan's time.
+        have left now and to run the section in the plan's time. At rest first: the
+        report of an arrival goes when the plan has no time left, while the train may
+        still roll the last centimetres to its stop.
         """
         p = self._progress.get(train_id)
-        if p is None or not p.arrived or speed_mps <= 0.0 or train_id in self._done:
+        if p is None or not p.arrived or train_id in self._done:
             return  # (a train arrived at its destination is done)
+        if speed_mps <= 0.0:
+            self._standing.add(train_id)
+            return
+        if train_id not in self._standing:
+            return  # still rolling to the stop its report has reached
+        self._standing.discard(train_id)
         j = p.j + 1
         planned_s = self._plan[train_id][j] - self._leave[train_id][j]
         self._progress[train_id] = _Progress(j, now_s, now_s + planned_s, False, 0.0)
