@@ -627,3 +627,55 @@ def test_other_bad_inputs(call, field):
     with pytest.raises(ConfigError) as err:
         call()
     assert err.value.field == field
+
+
+# ---------------------------------------------------------------- the lowest along a stretch
+
+#: 80 up to km 1, 60 on km 1-2, 100 to km 3, 40 on km 3-3.1, 100 to km 5 [m/s for short]
+ALONG = SpeedProfile([0.0, 1000.0, 2000.0, 3000.0, 3100.0, 5000.0], [80, 60, 100, 40, 100])
+
+
+@pytest.mark.parametrize(
+    ("low", "high", "lowest"),
+    [
+        (100.0, 900.0, 80.0),  # inside one piece
+        (500.0, 1000.0, 60.0),  # touching an edge: the stricter side
+        (2000.0, 2500.0, 60.0),  # the tail still on the edge of the lower limit
+        (2000.001, 2500.0, 100.0),  # and just off it
+        (2500.0, 3500.0, 40.0),  # a short slow stretch under the middle
+        (1500.0, 1500.0, 60.0),  # a point
+        (-400.0, 200.0, 80.0),  # beyond the start: held to the end piece, not to 0
+        (4800.0, 5600.0, 100.0),  # beyond the end
+    ],
+)
+def test_the_lowest_along_a_stretch_by_hand(low: float, high: float, lowest: float) -> None:
+    assert ALONG.lowest_along(low, high) == lowest
+
+
+@settings(max_examples=200, deadline=None)
+@given(
+    st.floats(-500.0, 5500.0, allow_nan=False),
+    st.floats(0.0, 3000.0, allow_nan=False),
+)
+def test_the_lowest_along_a_stretch_is_the_least_of_the_speeds_on_it(
+    low: float, length: float
+) -> None:
+    high = low + length
+    a, b = np.clip([low, high], ALONG.start_m, ALONG.end_m)
+    # what at() says on the clipped stretch: at both ends, every edge between and each
+    # piece's midpoint between (at() is 0 at the profile's own end points: kept inside)
+    edges = ALONG.edges_m[(ALONG.edges_m >= a) & (ALONG.edges_m <= b)]
+    points = np.unique(np.concatenate(([a, b], edges)))
+    inside = np.concatenate((points, (points[:-1] + points[1:]) / 2.0))
+    inside = inside[(inside > ALONG.start_m) & (inside < ALONG.end_m)]
+    ends = ALONG.speeds_mps[[0, -1]][[a <= ALONG.start_m, b >= ALONG.end_m]]
+    expected = min(np.min(ALONG.at(inside), initial=np.inf), np.min(ends, initial=np.inf))
+    assert ALONG.lowest_along(low, high) == expected
+
+
+def test_the_lowest_along_keeps_the_shape_of_what_it_is_given() -> None:
+    lows = np.array([[100.0, 2500.0], [1500.0, 4800.0]])
+    assert_array_equal(ALONG.lowest_along(lows, lows + 600.0), [[80.0, 40.0], [60.0, 100.0]])
+    assert ALONG.lowest_along(np.empty(0), np.empty(0)).shape == (0,)
+    with pytest.raises(ConfigError, match="position_m"):
+        ALONG.lowest_along([math.nan], [1.0])

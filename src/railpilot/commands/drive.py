@@ -204,9 +204,7 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
         "energy_traction_against_air_kwh": sum(
             r["energy_traction_against_air_kwh"] for r in results
         ),
-        "max_overspeed_kmh": {
-            end: max(r["max_overspeed_kmh"][end] for r in results) for end in ("head", "tail")
-        },
+        "max_overspeed_kmh": max(r["max_overspeed_kmh"] for r in results),
         "target_points_passed": sum(r["target_points_passed"] for r in results),
         "max_abs_stop_error_m": max(abs(r["stop_error_m"]) for r in results),
         "tsr_checks": [c for r in results for c in r["tsr_checks"]],

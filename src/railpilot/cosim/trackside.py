@@ -26,6 +26,7 @@ from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.targets import find_target
 from railpilot.line.model import RailLine
 from railpilot.link import TravelDirection
+from railpilot.onboard.mrsp import SpeedProfile
 
 #: how many block sections ahead a cab signal shows (3-aspect signalling: the next
 #: signal's aspect tells whether the one after it is red)
@@ -226,21 +227,9 @@ def static_limit_under(line: RailLine, train: TrainShape, head_m: np.ndarray) ->
     train counts. The part of a train beyond either end of the line (a long train starting
     at a terminus) is held to the limit at that end.
     """
-    edges, limits = line.static_limit(train.category, train.direction)
+    static = SpeedProfile(*line.static_limit(train.category, train.direction))
     tail = head_m - direction_sign(train.direction) * train.length_m
-    low = np.clip(np.minimum(head_m, tail), edges[0], edges[-1])
-    high = np.clip(np.maximum(head_m, tail), edges[0], edges[-1])
-    # pieces (edges[k], edges[k+1]) the closed stretch [low, high] touches: from the first
-    # whose end is at or past low to the last whose start is at or before high
-    last_piece = len(limits) - 1
-    first = np.clip(np.searchsorted(edges, low, side="left") - 1, 0, last_piece)
-    last = np.clip(np.searchsorted(edges, high, side="right") - 1, first, last_piece)
-    # the minimum over pieces first..last of every head at once: reduceat takes it over
-    # padded[first:last + 1] at the even positions
-    padded = np.append(limits, np.inf)
-    bounds = np.empty(2 * len(low), dtype=np.intp)
-    bounds[0::2], bounds[1::2] = first, last + 1
-    return np.minimum.reduceat(padded, bounds)[0::2]
+    return static.lowest_along(np.minimum(head_m, tail), np.maximum(head_m, tail))
 
 
 def static_overspeeds(

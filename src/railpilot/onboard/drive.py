@@ -21,6 +21,7 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
+import numpy.typing as npt
 
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
@@ -31,10 +32,12 @@ from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TargetPoint, TargetReason, TravelDirection, TsrSet
 from railpilot.onboard.braking import BrakingTrain, TsrCheck, tsr_check
 from railpilot.onboard.mrsp import (
+    FloatArray,
     Mrsp,
     SpeedProfile,
     TargetStop,
     apply_tsr,
+    direction_sign,
     km_post_m,
     most_restrictive_profile,
     travelled_m,
@@ -206,6 +209,10 @@ class DriveOutcome:
     #: the signals held at red, and when (each target point set, then cleared)
     target_requests: tuple[TargetRequest, ...] = ()
     replans: tuple[Replan, ...] = ()
+    #: the TSRs as given (not extended; each known to the onboard from its ``set_s``)
+    tsr_requests: tuple[TsrRequest, ...] = ()
+    #: the departure on the clock of the TSRs' and target points' times [s]
+    start_time_s: float = 0.0
 
     @property
     def target_signals_m(self) -> tuple[float, ...]:
@@ -226,25 +233,22 @@ class DriveOutcome:
         r = self.result
         x = self.km_post(r["position_m"])
         v = r["speed_mps"]
-        t = r["time_s"]
-        tail = x - (1.0 if self.direction == UP else -1.0) * self.train_length_m
-        # each sample against the MRSP in force when it was taken
-        timeline = self.mrsp_timeline or ((0.0, self.mrsp),)
-        head_limit = np.empty_like(x)
-        tail_limit = np.empty_like(x)
-        starts = [start for start, _ in timeline] + [np.inf]
-        for (start, mrsp), until in zip(timeline, starts[1:], strict=True):
-            now = (t >= start) & (t < until)
-            head_limit[now] = mrsp.at(x[now])
-            tail_limit[now] = mrsp.at(tail[now])
+        # the time of each sample on the clock of the TSRs and target points
+        t = r["time_s"] + self.start_time_s
+        limit = whole_train_limit_mps(
+            self.static, self.tsr_requests, t, x, self.direction, self.train_length_m
+        )
         moving = v > 0
-        head_over = np.where(moving, v - head_limit, -np.inf)
-        tail_over = np.where(moving, v - tail_limit, -np.inf)
+        over = np.where(moving, v - limit, -np.inf)
         passed = 0
         for request in self.target_requests:
             held = (t >= request.set_s) & (t < request.clear_s)
             beyond = travelled_m(x, self.direction, request.signal_m) > 0.0
-            passed += int(np.any(held & beyond))
+            # the head went past the signal while it was held, between two samples (not:
+            # it was past already when the target point came, or when the section began)
+            crossed = np.zeros_like(beyond)
+            crossed[1:] = beyond[1:] & ~beyond[:-1]
+            passed += int(np.any(held & crossed))
         metrics = r.metrics
         s_run = r["position_m"]
         above = np.zeros(s_run.shape, dtype=bool)
@@ -273,10 +277,7 @@ class DriveOutcome:
             "planned_energy_traction_kwh": self.plan.energy_traction_kwh,
             "planned_energy_regenerated_kwh": self.plan.energy_regenerated_kwh,
             "max_speed_kmh": metrics["max_speed_kmh"],
-            "max_overspeed_kmh": {
-                "head": max(0.0, float(mps_to_kmh(np.max(head_over)))),
-                "tail": max(0.0, float(mps_to_kmh(np.max(tail_over)))),
-            },
+            "max_overspeed_kmh": max(0.0, float(mps_to_kmh(np.max(over)))),
             "target_points_passed": passed,
             "tsr_checks": list(self.tsr_checks),
             "replans": [
@@ -288,6 +289,40 @@ class DriveOutcome:
                 for p in self.replans
             ],
         }
+
+
+def whole_train_limit_mps(
+    static: SpeedProfile,
+    tsrs: tuple[TsrRequest, ...],
+    time_s: npt.ArrayLike,
+    head_m: npt.ArrayLike,
+    direction: TravelDirection,
+    length_m: float,
+) -> FloatArray:
+    """The speed [m/s] the whole train may run at, for each sample of its head's km post
+    ``head_m`` [m] at ``time_s`` [s, the TSRs' clock] (vectorised).
+
+    The lowest static limit anywhere between its tail and its head
+    (:meth:`SpeedProfile.lowest_along`: a limit rises only when the tail has left the
+    lower one), and the lowest limit of the TSRs the onboard knew at that time (from
+    their ``set_s``) whose zone, *as given*, the train overlaps (edges included).
+
+    Not the MRSP at the head and at the tail, as before: the MRSP carries each TSR
+    extended by a train length on its exit side, so the tail looked up in it is held to
+    the TSR for a train length after it has left the zone (a false overspeed as the
+    train speeds up again), and its static limits are not extended, so the head looked
+    up in it misses a tail still in a lower limit.
+    """
+    t = np.asarray(time_s, dtype=float)
+    head = np.asarray(head_m, dtype=float)
+    tail = head - direction_sign(direction) * length_m
+    low, high = np.minimum(head, tail), np.maximum(head, tail)
+    limit = static.lowest_along(low, high)
+    for tsr in tsrs:
+        zone_low, zone_high = sorted((tsr.start_m, tsr.end_m))
+        under = (t >= tsr.set_s) & (low <= zone_high) & (high >= zone_low)
+        limit = np.where(under, np.minimum(limit, tsr.limit_mps), limit)
+    return limit
 
 
 def drive(
@@ -389,6 +424,8 @@ def drive(
         tuple(timeline),
         tuple(targets),
         tuple(replans),
+        tuple(tsrs),
+        start_time_s,
     )
 
 

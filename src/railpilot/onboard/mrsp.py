@@ -233,6 +233,33 @@ class SpeedProfile:
         right = padded[np.searchsorted(self.edges_m, x, side="right")]
         return np.asarray(np.minimum(left, right))
 
+    def lowest_along(self, low_m: npt.ArrayLike, high_m: npt.ArrayLike) -> FloatArray:
+        """The lowest speed [m/s] anywhere on each closed stretch ``[low_m, high_m]`` [m]
+        (vectorised; ``low_m <= high_m``): what a whole train between those km posts may
+        run at.
+
+        Edges count as the stricter side, as in :meth:`at`: a stretch touching an edge is
+        held to both pieces. A stretch is clipped to ``[start_m, end_m]`` first: the part
+        of a train beyond the described line (a long train standing at a terminus) is held
+        to the end piece, not to the 0 :meth:`at` gives out there.
+        """
+        edges, speeds = self.edges_m, self.speeds_mps
+        low = np.clip(_positions(low_m), edges[0], edges[-1])
+        if low.size == 0:
+            return np.empty(low.shape)
+        high = np.clip(_positions(high_m), edges[0], edges[-1])
+        # pieces (edges[k], edges[k+1]) the closed stretch [low, high] touches: from the
+        # first whose end is at or past low to the last whose start is at or before high
+        last_piece = len(speeds) - 1
+        first = np.clip(np.searchsorted(edges, low, side="left") - 1, 0, last_piece)
+        last = np.clip(np.searchsorted(edges, high, side="right") - 1, first, last_piece)
+        # the minimum over pieces first..last of every stretch at once: reduceat takes it
+        # over padded[first:last + 1] at the even positions
+        padded = np.append(speeds, np.inf)
+        bounds = np.empty(2 * first.size, dtype=np.intp)
+        bounds[0::2], bounds[1::2] = first.ravel(), last.ravel() + 1
+        return np.minimum.reduceat(padded, bounds)[0::2].reshape(first.shape)
+
     def minimum(self, other: SpeedProfile) -> SpeedProfile:
         """The pointwise minimum of two profiles, over the stretch both describe.
 
