@@ -20,6 +20,9 @@ SWEPT = (
     "conformity_pct.mean_abs_section",
     "energy_kwh",
     "energy_traction_against_air_kwh",
+    "punctuality.within_3_min_pct",
+    "punctuality.mean_delay_s",
+    "punctuality.max_delay_s",
     "red_signal_stops",
     "tsr_violations",
     "target_points_passed",
@@ -285,6 +288,11 @@ def _print_text(out: dict[str, Any]) -> None:
     if "baseline_energy_kwh" in out:
         line += f" (baseline {out['baseline_energy_kwh']} kWh)"
     print(line)
+    on_time = out["punctuality"]
+    print(
+        f"  arrivals on time within 3 min: {on_time['within_3_min_pct']} % of"
+        f" {on_time['arrivals']} (largest delay {on_time['max_delay_s']} s)"
+    )
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "overspeeds"):
         print(f"  {key.replace('_', ' ')}: {out[key]}")
     print(f"  link failures: {out['link']['link_failures']}, connects: {out['link']['connects']}")

@@ -37,10 +37,15 @@ KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
     train and overall.
 ``link``
     the link's counters (frames, losses by cause, resends, timeouts, rejections by check).
+
+Besides paper 001's, the operator's: ``punctuality`` (:func:`punctuality`), every arrival
+at a timetabled stop against the timetable (not against a re-timing), per train
+(``arrival_delays_s``) and as shares on time within 1, 3 and 5 minutes.
 """
 
 from __future__ import annotations
 
+import math
 import time
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
@@ -65,6 +70,9 @@ WATCH_S = 1.0
 POWER_ON_LEAD_S = 120.0
 #: a dispatcher's operation that finds the ground down is tried again this much later [s]
 RETRY_WHILE_DOWN_S = 10.0
+#: punctuality: an arrival at most this many minutes after the timetable is on time (one
+#: share each; an early arrival is on time)
+ON_TIME_WITHIN_MIN = (1, 3, 5)
 
 
 @dataclass
@@ -84,6 +92,20 @@ class TrainRun:
     running_times_received: int
     #: the running times the ground sent [s] by station pair (its last for each)
     running_times: dict[tuple[int, int], float] = field(default_factory=dict)
+
+    def arrival_delays_s(self, end_s: float) -> list[float | None]:
+        """Each arrival at a stop of the timetable, in order, that the train made or
+        that was due by ``end_s`` [s since the start of the run]: how late it came [s,
+        negative: early], or None for one due that it had not made by then (a train held
+        up, or failed, is late, not left out)."""
+        delays: list[float | None] = []
+        for k, stop in enumerate(self.service.stops[1:]):
+            section = self.sections[k] if k < len(self.sections) else None
+            if section is not None and math.isfinite(section.arrival_s):
+                delays.append(section.arrival_s - section.planned_arrival_s)
+            elif stop.arrival_s <= end_s:
+                delays.append(None)
+        return delays
 
     @classmethod
     def of(cls, driver: TrainDriver) -> TrainRun:
@@ -141,6 +163,7 @@ class LineResult:
         all_sections: list[float] = []
         end_to_end: list[float] = []
         total_energy = against_air = 0.0
+        all_delays: list[float | None] = []
         worst_excess: dict[int, float] = {}
         for spell in self.overspeeds:
             train = spell["train"]
@@ -155,6 +178,8 @@ class LineResult:
             total_energy += energy
             wasted = sum(s.energy_traction_against_air_kwh for s in sections)
             against_air += wasted
+            delays = driver.arrival_delays_s(self.sim_s)
+            all_delays += delays
             row: dict[str, Any] = {
                 "number": driver.service.number,
                 "kind": driver.service.kind,
@@ -173,6 +198,7 @@ class LineResult:
                 "max_overspeed_kmh": worst_excess.get(train_id, 0.0),
                 "running_times_received": driver.running_times_received,
                 "arrival_delay_s": None,
+                "arrival_delays_s": [None if d is None else round(d, 1) for d in delays],
             }
             if sections:
                 planned = sections[-1].planned_arrival_s - sections[0].planned_departure_s
@@ -197,6 +223,7 @@ class LineResult:
             },
             "energy_kwh": round(total_energy, 1),
             "energy_traction_against_air_kwh": round(against_air, 1),
+            "punctuality": punctuality(all_delays),
             "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
             "tsr_violations": len(self.tsr_violations),
             "target_points_passed": len(self.signals_passed_at_red),
@@ -221,6 +248,7 @@ class LineResult:
                     "conformity_pct",
                     "energy_kwh",
                     "energy_traction_against_air_kwh",
+                    "punctuality",
                     "red_signal_stops",
                     "tsr_violations",
                     "target_points_passed",
@@ -254,6 +282,23 @@ def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
             for e in solved
         ],
     }
+
+
+def punctuality(delays_s: list[float | None]) -> dict[str, Any]:
+    """The operator's view of the arrivals (:meth:`TrainRun.arrival_delays_s`, None: due
+    and not made): how many were due or made, how many not made, the share [%] on time
+    within each of :data:`ON_TIME_WITHIN_MIN` minutes (one not made is not on time), and
+    the mean and the largest delay [s] of those made (None where there are none)."""
+    made = [d for d in delays_s if d is not None]
+    out: dict[str, Any] = {"arrivals": len(delays_s), "not_made": len(delays_s) - len(made)}
+    for minutes in ON_TIME_WITHIN_MIN:
+        on_time = sum(1 for d in made if d <= 60.0 * minutes)
+        out[f"within_{minutes}_min_pct"] = (
+            round(100.0 * on_time / len(delays_s), 1) if delays_s else None
+        )
+    out["mean_delay_s"] = round(float(np.mean(made)), 1) if made else None
+    out["max_delay_s"] = round(max(made), 1) if made else None
+    return out
 
 
 def _conformity(actual_s: float, planned_s: float) -> float:

@@ -24,6 +24,7 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.cosim.line_run import ON_TIME_WITHIN_MIN
 from railpilot.cosim.scenario import LineScenario
 from railpilot.reproduce.base import Reproduction, Table, find_example
 
@@ -213,6 +214,12 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
         _total(advised, "energy_traction_against_air_kwh"),
         _total(baseline, "energy_traction_against_air_kwh"),
     )
+    pa, pb = advised["punctuality"], baseline["punctuality"]
+    for minutes in ON_TIME_WITHIN_MIN:
+        key = f"within_{minutes}_min_pct"
+        row(f"arrivals on time within {minutes} min [%]", pa[key], pb[key])
+    row("arrival delay, mean [s]", pa["mean_delay_s"], pb["mean_delay_s"])
+    row("arrival delay, largest [s]", pa["max_delay_s"], pb["max_delay_s"])
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
         row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
     row("overspeeds above the static limits", advised["overspeeds"], baseline["overspeeds"])
