@@ -217,9 +217,9 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
     pa, pb = advised["punctuality"], baseline["punctuality"]
     for minutes in ON_TIME_WITHIN_MIN:
         key = f"within_{minutes}_min_pct"
-        row(f"arrivals on time within {minutes} min [%]", pa[key], pb[key])
-    row("arrival delay, mean [s]", pa["mean_delay_s"], pb["mean_delay_s"])
-    row("arrival delay, largest [s]", pa["max_delay_s"], pb["max_delay_s"])
+        row(f"punctuality: arrivals within {minutes} min of the timetable [%]", pa[key], pb[key])
+    row("punctuality: arrival delay, mean [s]", pa["mean_delay_s"], pb["mean_delay_s"])
+    row("punctuality: arrival delay, largest [s]", pa["max_delay_s"], pb["max_delay_s"])
     for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
         row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
     row("overspeeds above the static limits", advised["overspeeds"], baseline["overspeeds"])
@@ -374,6 +374,13 @@ def findings(advised: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
     out.append(
         f"Red-signal stops: {advised['red_signal_stops']} advised, "
         f"{baseline['red_signal_stops']} baseline."
+    )
+    pa, pb = advised["punctuality"], baseline["punctuality"]
+    out.append(
+        f"Arrivals within 3 minutes of the timetable: {pa['within_3_min_pct']} % advised, "
+        f"{pb['within_3_min_pct']} % baseline, of {pa['arrivals']} (an early arrival counts "
+        f"as on time; mean delay {pa['mean_delay_s']} s advised, {pb['mean_delay_s']} s "
+        "baseline)."
     )
     retiming = advised.get("retiming")
     if retiming is not None and retiming["runs"]:
