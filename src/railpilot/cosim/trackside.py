@@ -26,7 +26,7 @@ from railpilot.ground.operations import CancelTsr, SetTsr
 from railpilot.ground.targets import find_target
 from railpilot.line.model import RailLine
 from railpilot.link import TravelDirection
-from railpilot.onboard.mrsp import SpeedProfile
+from railpilot.onboard.mrsp import SpeedProfile, train_span_m
 
 #: how many block sections ahead a cab signal shows (3-aspect signalling: the next
 #: signal's aspect tells whether the one after it is red)
@@ -228,8 +228,7 @@ def static_limit_under(line: RailLine, train: TrainShape, head_m: np.ndarray) ->
     at a terminus) is held to the limit at that end.
     """
     static = SpeedProfile(*line.static_limit(train.category, train.direction))
-    tail = head_m - direction_sign(train.direction) * train.length_m
-    return static.lowest_along(np.minimum(head_m, tail), np.maximum(head_m, tail))
+    return static.lowest_along(*train_span_m(head_m, train.direction, train.length_m))
 
 
 def static_overspeeds(

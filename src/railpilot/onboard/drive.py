@@ -37,9 +37,9 @@ from railpilot.onboard.mrsp import (
     SpeedProfile,
     TargetStop,
     apply_tsr,
-    direction_sign,
     km_post_m,
     most_restrictive_profile,
+    train_span_m,
     travelled_m,
 )
 from railpilot.onboard.planner import (
@@ -314,9 +314,7 @@ def whole_train_limit_mps(
     up in it misses a tail still in a lower limit.
     """
     t = np.asarray(time_s, dtype=float)
-    head = np.asarray(head_m, dtype=float)
-    tail = head - direction_sign(direction) * length_m
-    low, high = np.minimum(head, tail), np.maximum(head, tail)
+    low, high = train_span_m(head_m, direction, length_m)
     limit = static.lowest_along(low, high)
     for tsr in tsrs:
         zone_low, zone_high = sorted((tsr.start_m, tsr.end_m))

@@ -89,6 +89,17 @@ def km_post_m(
     return np.asarray(origin_m + direction_sign(direction) * np.asarray(travelled, dtype=float))
 
 
+def train_span_m(
+    head_m: npt.ArrayLike, direction: TravelDirection, length_m: float
+) -> tuple[FloatArray, FloatArray]:
+    """``(low_m, high_m)`` [m]: the km posts between which a train of ``length_m`` [m]
+    stands, its head at ``head_m`` [m] going ``direction`` (vectorised), for
+    :meth:`SpeedProfile.lowest_along`."""
+    head = np.asarray(head_m, dtype=float)
+    tail = head - direction_sign(direction) * length_m
+    return np.minimum(head, tail), np.maximum(head, tail)
+
+
 # ---------------------------------------------------------------------------- the profile
 
 
