@@ -158,3 +158,13 @@ def test_bad_run_count_exits_2(capsys, runs):
     assert code == 2
     assert "montecarlo.runs" in err
     assert out == ""
+
+
+def test_a_scheduler_address_dask_cannot_read_exits_2_and_writes_nothing(capsys, tmp_path):
+    out_dir = tmp_path / "out"
+    code = main([*ARGS, "--no-progress", "--scheduler", "no-port", "--out", str(out_dir)])
+    out, err = capsys.readouterr()
+    assert code == 2
+    assert "--scheduler = 'no-port'" in err and "port" in err.split("expected", 1)[1]
+    assert out == ""
+    assert not out_dir.exists()

@@ -78,11 +78,15 @@ def test_the_same_seed_gives_the_same_draws_and_trains_draw_independently() -> N
         ({"latency_min_s": 0.3, "latency_median_s": 0.2}, "channel.latency_median_s"),
         ({"latency_sigma": float("nan")}, "channel.latency_sigma"),
         ({"bandwidth": 3}, "channel.bandwidth"),
-        ({"dead_zones": [{"start_km": 5, "end_km": 4}]}, "dead_zone.end_km"),
+        ({"dead_zones": [{"start_km": 5, "end_km": 4}]}, "channel.dead_zones[0].end_km"),
+        (
+            {"dead_zones": [{"start_km": 1, "end_km": 2}, {"start_km": -1, "end_km": 2}]},
+            "channel.dead_zones[1].start_km",
+        ),
         ({"dead_zones": [{"start_km": 5}]}, "channel.dead_zones[0]"),
         ({"dead_zones": [{"start_km": 5, "end_km": 6, "x": 1}]}, "channel.dead_zones[0].x"),
         ({"dead_zones": "km 5"}, "channel.dead_zones"),
-        ({"outages": [{"start_s": 10, "end_s": 10}]}, "outage.end_s"),
+        ({"outages": [{"start_s": 10, "end_s": 10}]}, "channel.outages[0].end_s"),
     ],
 )
 def test_bad_channel_tables_are_refused_naming_the_field(table: dict, field: str) -> None:

@@ -53,7 +53,13 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
 
 @pytest.mark.parametrize(
     ("args", "field"),
-    [(["--runs", "0"], "--runs"), (["--seed", "-3"], "--seed")],
+    [
+        (["--runs", "0"], "--runs"),
+        (["--seed", "-3"], "--seed"),
+        (["--scheduler", "tcp://127.0.0.1:8786"], "--scheduler"),  # one run, no cluster
+        (["--runs", "2", "--scheduler", "no-port"], "--scheduler"),
+        (["--runs", "2", "--scheduler", "xyz://127.0.0.1:8786"], "--scheduler"),
+    ],
 )
 def test_bad_arguments_are_refused(tmp_path, capsys, args, field):
     path = tmp_path / "tiny.toml"

@@ -146,6 +146,9 @@ def run(args: argparse.Namespace) -> int:
         raise ConfigError("--runs", args.runs, "a number of runs in [1, 100000]")
     if not 0 <= seed < 2**63 - args.runs:
         raise ConfigError("--seed", seed, "a seed >= 0")
+    if args.scheduler is not None and args.runs == 1:
+        # one run goes in this process: a cluster named for it would silently be idle
+        raise ConfigError("--scheduler", args.scheduler, "a cluster only for --runs N > 1")
     if args.runs > 1:
         out = sweep(args.scenario, seed, args.runs, args.scheduler)
     else:
@@ -195,10 +198,11 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
             finished = ((futures[f], f.result()) for f in as_completed(futures))
             by_seed = _collect(finished, runs, started)
     else:
-        from dask.distributed import Client
         from dask.distributed import as_completed as dask_completed
 
-        with Client(scheduler) as client:
+        from railpilot.cluster import dask_client
+
+        with dask_client(scheduler) as client:
             submitted = client.map(_sweep_run, [str(path)] * runs, seeds, pure=False)
             seed_of = {f.key: s for f, s in zip(submitted, seeds, strict=True)}
             finished = ((seed_of[f.key], f.result()) for f in dask_completed(submitted))

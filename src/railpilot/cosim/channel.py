@@ -157,7 +157,13 @@ def _item(kind: type[Any], value: Any, where: str) -> Any:
     missing = names - set(value)
     if missing:
         raise ConfigError(where, dict(value), f"a table with {', '.join(sorted(missing))}")
-    return kind(**value)
+    try:
+        return kind(**value)
+    except ConfigError as error:
+        # the item names its field by its own kind ("dead_zone.end_km"); the file's
+        # reader needs the entry's place in the file ("channel.dead_zones[2].end_km")
+        name = error.field.rpartition(".")[2]
+        raise ConfigError(f"{where}.{name}", error.value, error.allowed) from None
 
 
 @dataclass

@@ -408,9 +408,11 @@ def run_montecarlo(
             metrics[start:stop] = run_chunk(scenario, controller_name, spec, start, stop)
             bar(stop - start)
     else:
-        from dask.distributed import Client, as_completed
+        from dask.distributed import as_completed
 
-        with Client(scheduler) as client:
+        from railpilot.cluster import dask_client
+
+        with dask_client(scheduler) as client:
             futures = {
                 client.submit(
                     run_chunk, scenario, controller_name, spec, start, stop, pure=False

@@ -1,0 +1,40 @@
+"""railpilot.cluster: the Dask cluster a sweep names with --scheduler."""
+
+from __future__ import annotations
+
+import socket
+
+import pytest
+
+from railpilot.cluster import dask_client
+from railpilot.errors import ConfigError
+
+distributed = pytest.importorskip("dask.distributed")
+
+
+@pytest.mark.parametrize("address", ["", "no-port", "xyz://127.0.0.1:8786"])
+def test_an_address_dask_cannot_read_is_refused_naming_the_option(address: str) -> None:
+    with pytest.raises(ConfigError) as info, dask_client(address):
+        pass
+    assert info.value.field == "--scheduler" and info.value.value == address
+
+
+def test_an_address_where_nothing_answers_is_refused_with_dask_s_reason() -> None:
+    # a port just closed on loopback: refused at once, Dask retries until its timeout
+    with socket.socket() as probe:
+        probe.bind(("127.0.0.1", 0))
+        port = probe.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    with pytest.raises(ConfigError) as info, dask_client(address, option="--cluster", timeout_s=1):
+        pass
+    assert info.value.field == "--cluster" and info.value.value == address
+    assert "Dask scheduler" in info.value.allowed and address in info.value.allowed
+
+
+def test_a_running_scheduler_gives_a_client_that_runs_work_and_is_closed_after() -> None:
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, processes=False, dashboard_address=None
+    ) as cluster:
+        with dask_client(cluster.scheduler_address) as client:
+            assert client.submit(pow, 3, 4).result(timeout=60) == 81
+        assert client.status == "closed"
