@@ -118,6 +118,8 @@ TSR = {"start_km": 1, "end_km": 2, "limit_kmh": 40, "valid_until_min": 1, "reaso
     ("request_", "needle"),
     [
         ({"op": "reboot"}, "op: 'reboot' is not allowed"),
+        ({"op": ["tsr_set"]}, "op: ['tsr_set'] is not allowed"),  # it crashed the request
+        ({"op": {"tsr_set": 1}}, "op: {'tsr_set': 1} is not allowed"),
         ({"op": "tsr_cancel", "session": 0}, "session: 0 is not allowed"),
         ({"op": "tsr_cancel", "session": 1, "trains": [TRAIN_ID]}, "'trains' is not a field"),
         ({"op": "tsr_set", **TSR, "limit_kmh": 999}, "limit_kmh: 999 is not allowed"),

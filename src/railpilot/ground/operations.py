@@ -286,11 +286,10 @@ def parse_operation(
     Raises :class:`OperationError` naming every bad field; unknown fields are errors too
     (a misspelt optional field must not be silently ignored).
     """
-    if op not in FIELDS:
+    if not isinstance(op, str) or op not in FIELDS:  # JSON gives lists and objects too
         raise OperationError(
             {"op": f"{_show(op)} is not allowed: expected one of {', '.join(OPS)}"}
         )
-    assert isinstance(op, str)
     if not isinstance(fields, Mapping):
         raise OperationError({"form": f"{_show(fields)} is not allowed: expected a JSON object"})
     required, optional = FIELDS[op]

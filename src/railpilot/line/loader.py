@@ -25,6 +25,7 @@ Each list may equally be written as ``[[gradients]]`` tables.
 
 from __future__ import annotations
 
+import functools
 import math
 import os
 import threading
@@ -330,9 +331,7 @@ def load_line(name_or_path: str | os.PathLike[str]) -> RailLine:
     A shipped name wins over a file of the same name in the working directory.
     """
     if isinstance(name_or_path, str) and name_or_path in SHIPPED_LINES:
-        resource = resources.files("railpilot.line.data") / SHIPPED_LINES[name_or_path]
-        text = resource.read_text(encoding="utf-8")
-        return interned(parse_line(text, source=f"line '{name_or_path}'"))
+        return interned(_shipped_line(name_or_path))
     path = Path(name_or_path)
     if not path.exists():
         raise LineError(
@@ -341,6 +340,15 @@ def load_line(name_or_path: str | os.PathLike[str]) -> RailLine:
             f"a shipped line ({', '.join(SHIPPED_LINES)}) or the path of a line TOML file",
         )
     return interned(read_line(path))
+
+
+@functools.cache
+def _shipped_line(name: str) -> RailLine:
+    """A shipped line, parsed once a process: its file is part of the package and does not
+    change while we run (the heavy-haul line takes about 40 ms to parse, and every
+    line-run file names it)."""
+    resource = resources.files("railpilot.line.data") / SHIPPED_LINES[name]
+    return parse_line(resource.read_text(encoding="utf-8"), source=f"line '{name}'")
 
 
 #: the first instance of each line loaded in this process (the most recent few)
