@@ -71,6 +71,11 @@ def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> N
         (["--target", "20.5@300:100"], "--target"),
         (["--target", "20.5@x"], "--target"),
         (["--target", "far"], "--target"),
+        # off the line (0-590 km): planned for and never met; -5 named TargetPoint.position_m
+        (["--target", "-5"], "--target = '-5' is not allowed: expected km posts on line"),
+        (["--target", "9999@1:2"], "--target = '9999@1:2'"),
+        (["--tsr", "589:600:60"], "--tsr = '589:600:60' is not allowed: expected km posts"),
+        (["--tsr", "9000:9001:60", "--timetable", "heavy-haul"], "--tsr = '9000:9001:60'"),
     ],
 )
 def test_bad_values_exit_2_naming_the_field_and_write_nothing(

@@ -10,9 +10,10 @@ from typing import TYPE_CHECKING
 
 from railpilot.commands._common import file_stem, log, print_json
 from railpilot.errors import ConfigError, LineError
-from railpilot.units import km_post_to_m, kmh_to_mps
+from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post
 
 if TYPE_CHECKING:
+    from railpilot.line.model import RailLine
     from railpilot.onboard.drive import DriveOutcome
 
 
@@ -100,6 +101,17 @@ def parse_target(text: str) -> tuple[float, float, float]:
     return float(km_post_to_m(signal)), set_s, clear_s
 
 
+def _check_on_line(
+    line: RailLine, texts: list[str], spans_m: list[tuple[float, float]], option: str
+) -> None:
+    """Each of ``option``'s km-post spans [m] inside ``line`` (a TSR or a signal off the
+    line would be planned for and never met; the ground refuses them as well)."""
+    lo, hi = m_to_km_post(line.start_m), m_to_km_post(line.end_m)
+    for text, (start_m, end_m) in zip(texts, spans_m, strict=True):
+        if not line.start_m <= start_m <= end_m <= line.end_m:
+            raise ConfigError(option, text, f"km posts on line {line.name}, {lo:g} to {hi:g}")
+
+
 def run(args: argparse.Namespace) -> int:
     from railpilot.line import load_line
     from railpilot.onboard.drive import TargetRequest, TsrRequest, drive, train_preset
@@ -117,6 +129,8 @@ def run(args: argparse.Namespace) -> int:
             ids = ", ".join(str(s.id) for s in line.stations)
             raise ConfigError(name, station, f"a station id of {line.name}: {ids}") from exc
     targets = tuple(TargetRequest(*parse_target(t)) for t in args.target)
+    _check_on_line(line, args.tsr, [(t.start_m, t.end_m) for t in tsrs], "--tsr")
+    _check_on_line(line, args.target, [(t.signal_m, t.signal_m) for t in targets], "--target")
     if args.timetable is not None:
         from railpilot.onboard.timetable import load_timetable
 
