@@ -12,7 +12,9 @@ from railpilot.errors import ConfigError
 distributed = pytest.importorskip("dask.distributed")
 
 
-@pytest.mark.parametrize("address", ["", "no-port", "xyz://127.0.0.1:8786"])
+@pytest.mark.parametrize(
+    "address", ["", "no-port", "xyz://127.0.0.1:8786", "tcp://127.0.0.1:x", "127.0.0.1:70000"]
+)
 def test_an_address_dask_cannot_read_is_refused_naming_the_option(address: str) -> None:
     with pytest.raises(ConfigError) as info, dask_client(address):
         pass
@@ -20,15 +22,15 @@ def test_an_address_dask_cannot_read_is_refused_naming_the_option(address: str) 
 
 
 def test_an_address_where_nothing_answers_is_refused_with_dask_s_reason() -> None:
-    # a port just closed on loopback: refused at once, Dask retries until its timeout
+    # a port just closed on loopback: refused at once
     with socket.socket() as probe:
         probe.bind(("127.0.0.1", 0))
         port = probe.getsockname()[1]
     address = f"tcp://127.0.0.1:{port}"
-    with pytest.raises(ConfigError) as info, dask_client(address, option="--cluster", timeout_s=1):
+    with pytest.raises(ConfigError) as info, dask_client(address, option="--cluster"):
         pass
     assert info.value.field == "--cluster" and info.value.value == address
-    assert "Dask scheduler" in info.value.allowed and address in info.value.allowed
+    assert "Dask scheduler" in info.value.allowed and "refused" in info.value.allowed
 
 
 def test_a_running_scheduler_gives_a_client_that_runs_work_and_is_closed_after() -> None:
