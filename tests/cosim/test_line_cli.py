@@ -88,6 +88,16 @@ def test_line_run_refuses_bad_arguments_before_starting_anything(tmp_path, capsy
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.parametrize("name", ["a_dir", "latin1.toml"])
+def test_a_path_that_is_no_readable_line_run_file_is_refused(tmp_path, capsys, name):
+    (tmp_path / "a_dir").mkdir()
+    (tmp_path / "latin1.toml").write_bytes(TINY.replace("tiny", "Kl\xf6ster").encode("latin-1"))
+    assert main(["line", "simulate", str(tmp_path / name), "--json"]) == 2
+    captured = capsys.readouterr()
+    assert f"SCENARIO = '{tmp_path / name}' is not allowed" in captured.err
+    assert captured.out == ""
+
+
 def test_a_bad_file_is_refused_naming_the_field(tmp_path, capsys):
     path = tmp_path / "bad.toml"
     path.write_text(TINY.replace('kind = "loaded"', 'kind = "tram"'))

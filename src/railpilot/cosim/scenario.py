@@ -59,7 +59,6 @@ from __future__ import annotations
 
 import math
 import os
-import tomllib
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -70,6 +69,7 @@ from railpilot.ground.operations import Operation, OperationError, parse_operati
 from railpilot.ground.retimer import RetimerSettings
 from railpilot.line.loader import load_line
 from railpilot.line.model import RailLine
+from railpilot.textfile import read_toml
 
 from .channel import ChannelModel
 from .driver import Service, Stop, planned_running_time_s
@@ -345,12 +345,7 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
 def load_scenario(path: str | os.PathLike[str]) -> LineScenario:
     """Read and check a line-run file; errors name the file."""
     p = Path(path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ScenarioError("SCENARIO", str(path), "an existing line-run file") from None
-    except tomllib.TOMLDecodeError as error:
-        raise ScenarioError("SCENARIO", str(path), f"valid TOML ({error})") from None
+    data = read_toml(path, "SCENARIO", "line-run file", ScenarioError)
     try:
         return scenario_from_mapping(data)
     except ConfigError as error:

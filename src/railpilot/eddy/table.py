@@ -29,6 +29,7 @@ from numba import njit
 
 from railpilot.eddy.torque_model import EddyBrakeParams, eddy_torque_at_speed_nm
 from railpilot.errors import ConfigError
+from railpilot.textfile import read_text
 from railpilot.units import kmh_to_mps, mps_to_kmh
 
 MIN_POINTS = 2
@@ -267,8 +268,5 @@ def parse_torque_table_csv(text: str, source: str = "csv") -> TorqueTable:
 def load_torque_table_csv(path: str | Path) -> TorqueTable:
     """Read a torque table CSV file (thin reader over :func:`parse_torque_table_csv`)."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError("table.csv", str(path), f"a readable CSV file ({exc.strerror})") from None
+    text = read_text(path, "table.csv", "CSV file")
     return parse_torque_table_csv(text, source=path.name)

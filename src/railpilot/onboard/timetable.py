@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.textfile import read_toml
 
 #: the keys of a section, and of the file
 SECTION_KEYS = ("from", "to", "running_time_s")
@@ -109,10 +110,4 @@ def load_timetable(name_or_path: str | Path) -> Timetable:
         text = files("railpilot.line.data").joinpath(SHIPPED[name_or_path]).read_text("utf-8")
         return parse_timetable(tomllib.loads(text), SHIPPED[name_or_path])
     p = Path(name_or_path)
-    try:
-        data = tomllib.loads(p.read_text(encoding="utf-8"))
-    except FileNotFoundError:
-        raise ConfigError("--timetable", str(p), "an existing timetable file") from None
-    except tomllib.TOMLDecodeError as exc:
-        raise ConfigError("--timetable", str(p), f"valid TOML ({exc})") from None
-    return parse_timetable(data, str(p))
+    return parse_timetable(read_toml(p, "--timetable", "timetable file"), str(p))

@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import dataclasses
 import re
-import tomllib
 import typing
 from collections.abc import Callable, Mapping
 from pathlib import Path
@@ -59,6 +58,7 @@ from typing import Any, TypeVar
 
 import numpy as np
 
+from railpilot import textfile
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
@@ -629,14 +629,8 @@ def _check_consistency(scenario: Scenario) -> None:
 
 
 def read_toml(path: Path) -> dict[str, Any]:
-    """Parse a TOML file; a missing or malformed file is a ScenarioError."""
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except FileNotFoundError as exc:
-        raise ScenarioError("SCENARIO", str(path), "an existing TOML file") from exc
-    except tomllib.TOMLDecodeError as exc:
-        raise ScenarioError("SCENARIO", str(path), f"valid TOML ({exc})") from exc
+    """Parse a TOML file; a missing, unreadable or malformed file is a ScenarioError."""
+    return textfile.read_toml(path, "SCENARIO", "TOML file", ScenarioError)
 
 
 def load_scenario(path: Path | str) -> Scenario | EddyScenario:
