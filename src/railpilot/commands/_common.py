@@ -5,8 +5,10 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import re
 import sys
+from pathlib import Path
 from typing import Any
 
 
@@ -64,3 +66,24 @@ def controller_argument(value: str) -> str:
         f"{', '.join(CONTROLLERS)} (braking), {', '.join(EDDY_CONTROLLERS)} (eddy brake), "
         "or module:Name / path/to/file.py:Name (your own controller, docs/architecture.md)"
     )
+
+
+def out_dir_argument(value: str) -> Path:
+    """``--out``: a folder that is there or can be made, checked when the command line is
+    read (a run that fails only when it writes its results has wasted its time, and may
+    have written half of them). Nothing is created here."""
+    path = Path(value)
+    existing = path
+    while not existing.exists():  # the nearest part of the path that is there
+        existing = existing.parent
+    if not existing.is_dir():
+        what = "it is a file" if existing == path else f"{existing} is a file"
+        raise argparse.ArgumentTypeError(
+            f"--out = {value!r} is not allowed: expected a folder ({what})"
+        )
+    if not os.access(existing, os.W_OK | os.X_OK):
+        raise argparse.ArgumentTypeError(
+            f"--out = {value!r} is not allowed: expected a folder we may write in "
+            f"({existing} is not writable)"
+        )
+    return path

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from railpilot.commands._common import log
+from railpilot.commands._common import log, out_dir_argument
 from railpilot.reproduce import REPRODUCTIONS, load
 
 
@@ -15,7 +14,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="reproduce every paper and write the HTML report",
         description="Run every reproduction, print its tables and write one HTML report.",
     )
-    p.add_argument("--out", type=Path, default=Path("out"), help="report folder [out]")
+    p.add_argument("--out", type=out_dir_argument, default="out", help="report folder [out]")
     p.set_defaults(func=run)
 
 

@@ -8,7 +8,7 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from railpilot.commands._common import file_stem, log, print_json
+from railpilot.commands._common import file_stem, log, out_dir_argument, print_json
 from railpilot.errors import ConfigError, LineError
 from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post
 
@@ -59,7 +59,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="KMH",
         help="the plan keeps this far below the MRSP [km/h] (default 5)",
     )
-    p.add_argument("--out", type=Path, help="write the figures here")
+    p.add_argument("--out", type=out_dir_argument, help="write the figures here")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
 

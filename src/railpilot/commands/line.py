@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from railpilot.commands._common import log, print_json
+from railpilot.commands._common import log, out_dir_argument, print_json
 from railpilot.errors import ConfigError
 
 #: the KPIs a sweep gives the distribution of (dotted paths into ``LineResult.kpis()``)
@@ -57,7 +57,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--runs", type=int, default=1, help="seeds to sweep (default 1)")
     p.add_argument("--no-baseline", action="store_true", help="skip the baseline run")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler for --runs")
-    p.add_argument("--out", type=Path, help="folder for the time-distance figure")
+    p.add_argument("--out", type=out_dir_argument, help="folder for the time-distance figure")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
     p = sub.add_parser(

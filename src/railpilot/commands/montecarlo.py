@@ -7,7 +7,13 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from railpilot.commands._common import controller_argument, file_stem, log, print_json
+from railpilot.commands._common import (
+    controller_argument,
+    file_stem,
+    log,
+    out_dir_argument,
+    print_json,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -34,7 +40,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="ADDRESS",
         help="Dask distributed scheduler, e.g. tcp://127.0.0.1:8786",
     )
-    p.add_argument("--out", type=Path, help="folder for the stop-error histogram")
+    p.add_argument("--out", type=out_dir_argument, help="folder for the stop-error histogram")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.add_argument("--no-progress", action="store_true", help="no progress bar")
     p.set_defaults(func=run)

@@ -3,9 +3,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
 
-from railpilot.commands._common import log, print_json
+from railpilot.commands._common import log, out_dir_argument, print_json
 from railpilot.reproduce import REPRODUCTIONS, load
 
 
@@ -17,7 +16,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "figures and print its tables.",
     )
     p.add_argument("name", choices=sorted(REPRODUCTIONS), help="which result")
-    p.add_argument("--out", type=Path, default=Path("out"), help="folder for figures [out]")
+    p.add_argument("--out", type=out_dir_argument, default="out", help="folder for figures [out]")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
 

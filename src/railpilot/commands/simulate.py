@@ -6,7 +6,13 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from railpilot.commands._common import controller_argument, file_stem, log, print_json
+from railpilot.commands._common import (
+    controller_argument,
+    file_stem,
+    log,
+    out_dir_argument,
+    print_json,
+)
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -25,7 +31,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "open_loop, pid, fuzzy, fuzzy_pi for eddy-brake ones; module:Name or "
         "path/to/file.py:Name for your own, docs/architecture.md)",
     )
-    p.add_argument("--out", type=Path, help="folder for time series and figures")
+    p.add_argument("--out", type=out_dir_argument, help="folder for time series and figures")
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
 
