@@ -168,3 +168,12 @@ def test_a_scheduler_address_dask_cannot_read_exits_2_and_writes_nothing(capsys,
     assert "--scheduler = 'no-port'" in err and "port" in err.split("expected", 1)[1]
     assert out == ""
     assert not out_dir.exists()
+
+
+@pytest.mark.parametrize("second", ["nomod:Foo", "fuzzy"])
+def test_a_bad_controller_in_second_place_is_refused_before_the_first_sweep(capsys, second) -> None:  # type: ignore[no-untyped-def]
+    args = ["montecarlo", str(EXAMPLE), "--runs", "2", "--no-progress"]
+    code = main([*args, "--controller", "smarc", "--controller", second])
+    out, err = capsys.readouterr()
+    assert code == 2 and f"'{second}' is not allowed" in err
+    assert out == "" and "runs in" not in err  # smarc's sweep did not run

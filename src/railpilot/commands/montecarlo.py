@@ -50,7 +50,8 @@ def run(args: argparse.Namespace) -> int:
     from railpilot.errors import ScenarioError
     from railpilot.scenario.loader import load_scenario_and_spec
     from railpilot.scenario.montecarlo import MonteCarloSpec
-    from railpilot.sim.batch import run_montecarlo
+    from railpilot.sim.batch import check_spec, freeze_ato, run_montecarlo
+    from railpilot.sim.run import resolve_controller
 
     scenario, spec = load_scenario_and_spec(args.scenario)
     spec = spec or MonteCarloSpec()
@@ -62,6 +63,11 @@ def run(args: argparse.Namespace) -> int:
     except ValueError as exc:  # ConfigError from the spec's own checks
         raise ScenarioError("--runs/--seed", (args.runs, args.seed), str(exc)) from exc
     controllers = args.controller or [scenario.controller.name]
+    check_spec(scenario, spec)
+    for name in controllers:
+        # each controller is built before the first sweep runs: a bad name in second
+        # place must not cost the first one's whole sweep
+        resolve_controller(freeze_ato(scenario), name)
     results = {}
     summary = {}
     for name in controllers:
