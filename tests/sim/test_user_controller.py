@@ -199,3 +199,25 @@ def test_simulate_command_refuses_an_unknown_controller(capsys) -> None:  # type
         main(["simulate", str(PAPER002), "--controller", "lqr"])
     assert stop.value.code == 2
     assert "one of pid, smarc, qsmc" in capsys.readouterr().err
+
+
+class Says:
+    """A Python controller whose update answers ``answer`` (not an acceleration)."""
+
+    def __init__(self, answer: object) -> None:
+        self.answer = answer
+
+    def reset(self) -> None:
+        pass
+
+    def update(self, reference, measurement, dt):  # type: ignore[no-untyped-def]
+        return self.answer
+
+
+@pytest.mark.parametrize("answer", ["fast", None, float("nan"), [0.1]])
+def test_an_update_that_answers_no_number_is_an_error_naming_it(scenario, answer) -> None:  # type: ignore[no-untyped-def]
+    # it was a ValueError from float() deep in the loop, or (NaN) a run of None metrics
+    with pytest.raises(ConfigError) as info:
+        simulate(scenario, Says(answer))
+    assert info.value.field == "Says.update()"
+    assert "the commanded acceleration" in info.value.allowed

@@ -26,6 +26,7 @@ import hashlib
 import importlib
 import importlib.util
 import itertools
+import math
 import sys
 from dataclasses import dataclass
 from pathlib import Path
@@ -93,8 +94,20 @@ _HANDLES = itertools.count(1)
 def _python_update(
     handle: int, rx: float, rv: float, ra: float, x: float, v: float, dt: float
 ) -> float:
-    command = _LIVE[handle].update(Reference(rx, rv, ra), Measurement(x, v), dt)
-    return float(command)
+    controller = _LIVE[handle]
+    command = controller.update(Reference(rx, rv, ra), Measurement(x, v), dt)
+    try:
+        u = float(command)
+    except (TypeError, ValueError):
+        u = math.nan
+    if math.isnan(u):
+        # the user's code, not the simulation, went wrong: say so, naming the method
+        raise ConfigError(
+            f"{type(controller).__name__}.update()",
+            command,
+            "a number: the commanded acceleration [m/s^2]",
+        )
+    return u
 
 
 @njit(cache=True)
