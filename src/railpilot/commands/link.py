@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 import asyncio
 import contextlib
+import errno
 import json
 import logging
 import math
@@ -18,6 +19,7 @@ import os
 import re
 import secrets
 import signal
+import socket
 import sys
 import time
 from collections.abc import Iterable
@@ -66,6 +68,43 @@ def _probability(text: str) -> float:
     if not 0.0 <= value <= 1.0:
         raise argparse.ArgumentTypeError(f"{value} is not in [0, 1]")
     return value
+
+
+#: ``--seconds`` of the long-running commands: at most a year (omit it to run until stopped).
+MAX_RUN_SECONDS = 366 * 86400.0
+
+
+def _seconds(value: float | None) -> None:
+    """Refuse a ``--seconds`` that is not a finite number in (0, MAX_RUN_SECONDS]; None
+    (not given) runs until stopped."""
+    if value is not None and not (math.isfinite(value) and 0.0 < value <= MAX_RUN_SECONDS):
+        raise ConfigError(
+            "--seconds",
+            value,
+            f"a finite number of seconds > 0 and <= {MAX_RUN_SECONDS:.0f} (366 days; omit "
+            "it to run until stopped)",
+        )
+
+
+def _listen_error(option: str, value: Any, host: str, exc: Exception) -> ConfigError:
+    """A listening socket that could not be opened, as an error naming the option."""
+    if isinstance(exc, socket.gaierror) or not isinstance(exc, OSError) or not exc.errno:
+        reason = str(getattr(exc, "strerror", None) or exc)
+    else:  # asyncio's own message repeats the address: the system's reason only
+        reason = os.strerror(exc.errno)
+    if option == "--host":
+        allowed = f"an address of this host to listen on ({reason})"
+    else:
+        allowed = f"a port in [0, 65535] free on {host} ({reason})"
+    return ConfigError(option, value, allowed)
+
+
+def _host_failed(exc: Exception) -> bool:
+    """Whether a failed bind is the address's fault (not the port's)."""
+    return isinstance(exc, socket.gaierror | UnicodeError) or getattr(exc, "errno", None) in (
+        errno.EADDRNOTAVAIL,
+        errno.EAFNOSUPPORT,
+    )
 
 
 def _keys(path: Path | None, no_auth: bool) -> Any:
@@ -459,16 +498,22 @@ def _ground_serve(args: argparse.Namespace) -> int:
     dashboard = _dashboard_options(args)
     db = args.db if is_postgres_url(args.db) else _db_path(args.db)
     _log_level(args)
+    # The store is opened before the server listens (it restores from it first); if the
+    # server then cannot start, a store file this run created is removed again.
+    created = [] if is_postgres_url(db) else _new_sqlite_files(db)
     try:
         store = open_store(db)
     except StoreError as exc:  # not a database, another schema, no WAL, no server ...
+        _remove(created)
         allowed = (
             exc.allowed if exc.field in ("path", "db") else f"a railpilot ground store ({exc})"
         )
         # redact_dsn: a PostgreSQL URL's password is never shown
         raise ConfigError("--db", redact_dsn(db), allowed) from None
+    started = False
 
     async def main() -> None:
+        nonlocal started
         stop = await _stop_on_signals()
         server = GroundServer(
             config,
@@ -481,36 +526,71 @@ def _ground_serve(args: argparse.Namespace) -> int:
         )
         dispatch = DispatchHost(server, line)
         http = None
-        if dashboard is not None:
-            # Before the link listens: a busy port stops everything before trains connect.
-            http = await _start_dashboard(dispatch, args, *dashboard)
+        admin = None
         try:
-            await server.start()
-            dispatch.start()
-            admin = None
+            # Every port is bound before the link's server touches the store (it restores
+            # from it, and notes that in its audit log): a busy port or an address that is
+            # not this host's stops everything first.
+            if dashboard is not None:
+                http = await _start_dashboard(dispatch, args, *dashboard)
             if args.admin_port != -1:
                 admin = AdminServer(dispatch, port=args.admin_port)
-                await admin.start()
+                try:
+                    await admin.start(serve=False)  # answers once the ground is ready
+                except OSError as exc:
+                    raise _listen_error("--admin-port", args.admin_port, "127.0.0.1", exc) from None
+            try:
+                await server.start()
+            except (OSError, UnicodeError) as exc:  # a busy port, not an address of ours
+                if _host_failed(exc):
+                    raise _listen_error("--host", args.host, args.host, exc) from None
+                raise _listen_error("--port", args.port, args.host, exc) from None
+            dispatch.start()
+            if admin is not None:
+                await admin.serve()
+            started = True
             # Everything alive now lives as long as the process: out of the collector's
             # reach, so that its full collections stop walking it (railpilot/heap.py).
             freeze_startup()
             if args.seconds is not None:
                 asyncio.get_running_loop().call_later(args.seconds, stop.set)
             await stop.wait()
+        finally:
             if admin is not None:
                 await admin.stop()
             dispatch.stop()
-            await server.stop()
-        finally:
+            if server.started_at_s is not None:
+                await server.stop()
             if http is not None:
                 http[0].should_exit = True
                 await http[1]
 
     try:
+        # After --db (a store that cannot be used is named first); like every failure
+        # before the server runs, this closes the store and removes one this run created.
+        _seconds(args.seconds)
         _run_async(main())
     finally:
         store.close()
+        if not started:
+            _remove(created)
     return 0
+
+
+def _new_sqlite_files(db: str) -> list[Path]:
+    """The files a SQLite store at ``db`` may create that do not exist yet (none when the
+    store itself exists: a store that was there is never removed)."""
+    if db == ":memory:" or os.path.lexists(db):
+        return []
+    names = (db, f"{db}-wal", f"{db}-shm", f"{db}-journal")
+    return [Path(name) for name in names if not os.path.lexists(name)]
+
+
+def _remove(paths: Iterable[Path]) -> None:
+    """Remove the files this run created (the store of a server that did not start)."""
+    for path in paths:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
 
 
 def _load_line(name: str) -> Any:
@@ -585,6 +665,10 @@ def _ground_admin(args: argparse.Namespace) -> int:
     from railpilot.ground.operations import FIELDS
     from railpilot.net.admin import AdminError, admin_request
 
+    if not 1 <= args.admin_port <= 65535:
+        raise ConfigError(
+            "--admin-port", args.admin_port, "the running server's admin port, in [1, 65535]"
+        )
     # who asked, for the ground's audit log: the operator's login on this host
     request: dict[str, Any] = {"op": args.op, "actor": _login()}
     required, optional = FIELDS[args.op]
@@ -686,17 +770,23 @@ def _onboard_run(args: argparse.Namespace) -> int:
 
     host, port = _host_port("--server", args.server)
     keys = _keys(args.keys, args.no_auth)
-    config = OnboardConfig(
-        train_id=args.train_id,
-        ground_id=args.ground_id,
-        train_number=args.train_number,
-        loco_number=args.loco_number,
-        driver_id=args.driver_id,
-        train_length_m=args.length_m,
-        require_auth=keys is not None,
-    )
-    if args.speed_kmh < 0 or args.speed_kmh > 360 or args.decel < 0:
-        raise LinkConfigError("--speed-kmh/--decel", (args.speed_kmh, args.decel), ">= 0")
+    _seconds(args.seconds)
+    _onboard_values(args)
+    try:
+        config = OnboardConfig(
+            train_id=args.train_id,
+            ground_id=args.ground_id,
+            train_number=args.train_number,
+            loco_number=args.loco_number,
+            driver_id=args.driver_id,
+            train_length_m=args.length_m,
+            require_auth=keys is not None,
+        )
+    except LinkConfigError as exc:
+        option = ONBOARD_OPTIONS.get(exc.field)
+        if option is None:
+            raise
+        raise LinkConfigError(option, exc.value, exc.allowed) from None
     trajectory = Trajectory(
         start_m=args.start_km * 1000.0,
         speed_mps=kmh_to_mps(args.speed_kmh),
@@ -731,6 +821,57 @@ def _onboard_run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(summary)
     return 0
+
+
+#: ``onboard run`` option of each onboard setting / message field it fills.
+ONBOARD_OPTIONS = {
+    "train_id": "--train-id",
+    "ground_id": "--ground-id",
+    "train_number": "--train-number",
+    "loco_number": "--loco-number",
+    "driver_id": "--driver-id",
+    "train_length_m": "--length-m",
+}
+
+
+def _onboard_values(args: argparse.Namespace) -> None:
+    """Refuse, before anything starts, what the train's messages could not carry: the
+    values go into every RegisterRequest and RunningInfo it sends (link/messages.py)."""
+    from railpilot.link import RegisterRequest, RunningInfo, TravelDirection
+    from railpilot.link.errors import MessageFieldError
+    from railpilot.link.messages import MAX_POSITION_M, MAX_SPEED_MPS
+
+    max_km = MAX_POSITION_M / 1000.0
+    if not (math.isfinite(args.start_km) and 0.0 <= args.start_km <= max_km):
+        raise LinkConfigError("--start-km", args.start_km, f"a finite km post in [0, {max_km:g}]")
+    max_kmh = round(mps_to_kmh(MAX_SPEED_MPS), 6)
+    if not (math.isfinite(args.speed_kmh) and 0.0 <= args.speed_kmh <= max_kmh):
+        raise LinkConfigError(
+            "--speed-kmh", args.speed_kmh, f"a finite speed in [0, {max_kmh:g}] km/h"
+        )
+    if not (math.isfinite(args.decel) and args.decel >= 0.0):
+        raise LinkConfigError(
+            "--decel", args.decel, "a finite deceleration >= 0 m/s^2 (0 = cruise)"
+        )
+    try:
+        RegisterRequest(
+            train_number=args.train_number,
+            loco_number=args.loco_number,
+            driver_id=args.driver_id,
+            train_length_m=args.length_m,
+        )
+        RunningInfo(
+            driver_id=args.driver_id,
+            train_number=args.train_number,
+            loco_number=args.loco_number,
+            direction=TravelDirection.UP,
+            speed_mps=min(kmh_to_mps(args.speed_kmh), MAX_SPEED_MPS),
+            position_m=args.start_km * 1000.0,
+        )
+    except MessageFieldError as exc:
+        option = ONBOARD_OPTIONS.get(exc.field, exc.field)
+        value = getattr(args, option[2:].replace("-", "_"), exc.value)
+        raise LinkConfigError(option, value, exc.allowed) from None
 
 
 # --- link tools -------------------------------------------------------------------------------
@@ -992,6 +1133,7 @@ def _link_proxy(args: argparse.Namespace) -> int:
     uhost, uport = _host_port("--upstream", args.upstream)
     _loopback("--listen", lhost)
     _loopback("--upstream", uhost)
+    _seconds(args.seconds)
     inject = b""
     if args.inject:
         path = Path(args.inject)
@@ -1021,7 +1163,10 @@ def _link_proxy(args: argparse.Namespace) -> int:
     async def main() -> dict[str, Any]:
         stop = await _stop_on_signals()
         proxy = FaultProxy(uhost, uport, options, host=lhost, port=lport)
-        await proxy.start()
+        try:
+            await proxy.start()
+        except OSError as exc:  # a busy port, no IPv6 for ::1 ...
+            raise _listen_error("--listen", args.listen, lhost, exc) from None
         if args.seconds is not None:
             asyncio.get_running_loop().call_later(args.seconds, stop.set)
         await stop.wait()
@@ -1038,19 +1183,28 @@ def _link_proxy(args: argparse.Namespace) -> int:
 
 
 def _link_loadtest(args: argparse.Namespace) -> int:
-    from railpilot.net.loadtest import LoadtestOptions, check_dashboard, run_loadtest
+    from railpilot.net.loadtest import MAX_SECONDS, LoadtestOptions, check_dashboard, run_loadtest
 
     if args.screenshot is not None and not args.dashboard:
         raise ConfigError("--screenshot", str(args.screenshot), "to be given with --dashboard")
-    options = LoadtestOptions(
-        trains=args.trains,
-        seconds=args.seconds,
-        seed=args.seed,
-        client_processes=args.client_processes,
-        dispatch=args.dispatch,
-        dashboard=args.dashboard,
-        screenshot=None if args.screenshot is None else str(args.screenshot),
-    )
+    if not (math.isfinite(args.seconds) and 1.0 <= args.seconds <= MAX_SECONDS):
+        raise ConfigError(
+            "--seconds", args.seconds, f"a finite number of seconds in [1, {MAX_SECONDS:g}]"
+        )
+    try:
+        options = LoadtestOptions(
+            trains=args.trains,
+            seconds=args.seconds,
+            seed=args.seed,
+            client_processes=args.client_processes,
+            dispatch=args.dispatch,
+            dashboard=args.dashboard,
+            screenshot=None if args.screenshot is None else str(args.screenshot),
+        )
+    except LinkConfigError as exc:  # name the option, not the field of LoadtestOptions
+        if not hasattr(args, exc.field):
+            raise
+        raise LinkConfigError("--" + exc.field.replace("_", "-"), exc.value, exc.allowed) from None
     try:
         check_dashboard(options)
     except ConfigError as exc:

@@ -109,7 +109,7 @@ def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") ->
             raise KeyFileError(f"{where}: expected a table")
         train_id = entry.get("id")
         if type(train_id) is not int:
-            raise KeyFileError(f"{where}: id must be an integer train id, got {train_id!r}")
+            raise KeyFileError(f"{where}: id must be an integer train id, got {_shown(train_id)}")
         keys = entry.get("keys")
         if not isinstance(keys, dict) or not keys:
             raise KeyFileError(f"{where}: expected a non-empty [train.keys] table")
@@ -130,13 +130,27 @@ def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") ->
                     f"{where}: {exc.field} = {exc.value!r}, expected {exc.allowed}"
                 ) from None
         active = entry.get("active_key", min(int(k) for k in keys))
+        if type(active) is not int:  # not a bool, a float (inf, 1.0) or a string
+            raise KeyFileError(
+                f"{where}: active_key must be an integer key id, got {_shown(active)}"
+            )
         try:
-            store.set_active(train_id, int(active))
-        except (LinkConfigError, TypeError, ValueError):
+            store.set_active(train_id, active)
+        except LinkConfigError:
             raise KeyFileError(
                 f"{where}: active_key {active!r} is not one of its key ids"
             ) from None
     return store
+
+
+def _shown(value: object) -> str:
+    """A key-file value for an error message: numbers and booleans as written, anything
+    else only by its type (a string there may be a key pasted in the wrong place)."""
+    if value is None:
+        return "nothing (the entry is missing)"
+    if isinstance(value, bool | int | float):
+        return repr(value).lower() if isinstance(value, bool) else repr(value)
+    return f"a {type(value).__name__}"
 
 
 def load_key_file(path: str | os.PathLike[str]) -> KeyStore:

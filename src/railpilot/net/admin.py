@@ -64,13 +64,22 @@ class AdminServer:
         self.port = port
         self._server: asyncio.Server | None = None
 
-    async def start(self) -> tuple[str, int]:
+    async def start(self, *, serve: bool = True) -> tuple[str, int]:
+        """Listen on the admin port and answer requests; with ``serve=False`` only bind
+        (a busy port fails here) and answer once :meth:`serve` is called."""
         self._server = await asyncio.start_server(
-            self._serve_client, self.host, self.port, limit=MAX_LINE
+            self._serve_client, self.host, self.port, limit=MAX_LINE, start_serving=False
         )
         self.port = int(self._server.sockets[0].getsockname()[1])
-        kv(log, logging.INFO, "admin_listening", host=self.host, port=self.port)
+        if serve:
+            await self.serve()
         return self.host, self.port
+
+    async def serve(self) -> None:
+        """Start answering requests on the port :meth:`start` bound."""
+        assert self._server is not None, "start() first"
+        await self._server.start_serving()
+        kv(log, logging.INFO, "admin_listening", host=self.host, port=self.port)
 
     async def stop(self) -> None:
         if self._server is not None:

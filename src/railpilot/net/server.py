@@ -297,12 +297,24 @@ class GroundServer:
         # of recordings made before a restart (protocol.md 5.2).
         if self.config.not_before_s == 0.0:
             self.config = replace(self.config, not_before_s=self.clock() - self.replay_window_s)
-        if self.store is not None:
-            # Before listening: no train may register against records not yet restored.
-            self._restore(self.store.load())
+        # Bind first (a busy port or a foreign address fails before the store is touched),
+        # answer only once the records are restored: no train may register against
+        # records not yet restored.
         self._server = await loop.create_server(
-            lambda: GroundConnection(self), self.host, self.port, backlog=self.backlog
+            lambda: GroundConnection(self),
+            self.host,
+            self.port,
+            backlog=self.backlog,
+            start_serving=False,
         )
+        try:
+            if self.store is not None:
+                self._restore(self.store.load())
+            await self._server.start_serving()
+        except BaseException:
+            self._server.close()
+            self._server = None
+            raise
         sockname = self._server.sockets[0].getsockname()
         self.port = int(sockname[1])
         self.started_at_s = self.clock()
