@@ -31,6 +31,7 @@ from railpilot.eddy.torque_model import EddyBrakeParams, eddy_torque_at_speed_nm
 from railpilot.errors import ConfigError
 from railpilot.textfile import read_text
 from railpilot.units import kmh_to_mps, mps_to_kmh
+from railpilot.vehicle.train import MAX_SPEED_KMH
 
 MIN_POINTS = 2
 
@@ -164,6 +165,18 @@ class TorqueTable:
         ):
             if not (np.isfinite(value) and value > 0.0):
                 raise ConfigError(name, value, "a finite number > 0")
+        # the table must cover the run's speeds (<= 400 km/h), not overflow round() below
+        if max_speed_kmh > MAX_SPEED_KMH:
+            raise ConfigError(
+                "table.max_speed_kmh", max_speed_kmh, f"a speed in (0, {MAX_SPEED_KMH:g}] km/h"
+            )
+        # a step wider than its range would silently give the minimal grid instead
+        for name, step, top_name, top in (
+            ("table.current_step_a", current_step_a, "table.max_current_a", max_current_a),
+            ("table.speed_step_kmh", speed_step_kmh, "table.max_speed_kmh", max_speed_kmh),
+        ):
+            if step > top:
+                raise ConfigError(name, step, f"a step in (0, {top_name} = {top:g}]")
         n_i = round(max_current_a / current_step_a) + 1
         n_v = round(max_speed_kmh / speed_step_kmh) + 1
         # a grid is a table in memory: refuse one that could not be built (or used)

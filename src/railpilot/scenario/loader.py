@@ -113,8 +113,10 @@ class _Table:
         *,
         gt: float | None = None,
         ge: float | None = None,
+        le: float | None = None,
     ) -> float:
-        """A finite number, optionally ``> gt`` or ``>= ge`` (checked in the file's units)."""
+        """A finite number, optionally ``> gt`` or ``>= ge`` and ``<= le`` (checked in the
+        file's units)."""
         self.used.add(name)
         if name not in self.data:
             if default is None:
@@ -128,10 +130,17 @@ class _Table:
             or value in (float("inf"), float("-inf"))
         ):
             raise ScenarioError(self.key(name), value, "a finite number")
-        if gt is not None and not value > gt:
-            raise ScenarioError(self.key(name), value, f"a number > {gt:g}")
-        if ge is not None and not value >= ge:
-            raise ScenarioError(self.key(name), value, f"a number >= {ge:g}")
+        bounds = [
+            f"{op} {bound:g}"
+            for op, bound in ((">", gt), (">=", ge), ("<=", le))
+            if bound is not None
+        ]
+        if (
+            (gt is not None and not value > gt)
+            or (ge is not None and not value >= ge)
+            or (le is not None and not value <= le)
+        ):
+            raise ScenarioError(self.key(name), value, "a number " + " and ".join(bounds))
         return float(value)
 
     def optional_number(self, name: str) -> float | None:
@@ -183,6 +192,7 @@ class _Table:
         read: str = "number",
         gt: float | None = None,
         ge: float | None = None,
+        le: float | None = None,
     ) -> None:
         """``kwargs[field] = convert(value)`` when the file gives ``name``; nothing otherwise.
 
@@ -199,7 +209,7 @@ class _Table:
         elif read == "string":
             kwargs[field] = self.string(name, "")
         else:
-            kwargs[field] = convert(self.number(name, gt=gt, ge=ge))
+            kwargs[field] = convert(self.number(name, gt=gt, ge=ge, le=le))
 
     def table(self, name: str) -> _Table:
         self.used.add(name)
@@ -243,6 +253,8 @@ _FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
     "reference.jerk": ("reference.jerk_mps3", lambda v: v),
     "reference.final_decel": ("reference.final_decel_mps2", lambda v: v),
     "reference.final_phase_speed": ("reference.final_phase_speed_kmh", mps_to_kmh),
+    "reference.cruise_mps": ("reference.cruise_kmh", mps_to_kmh),
+    "reference.v_start_mps": ("reference.v0_kmh", mps_to_kmh),
     "disturbance.constant_n": ("disturbance.constant_kn", lambda v: v / 1000.0),
     "disturbance.random_std_n": ("disturbance.random_std_kn", lambda v: v / 1000.0),
 }
@@ -264,6 +276,12 @@ _FILE_KEYS.update(_brake_file_keys())
 
 #: fields whose value is a (start, end) pair in metres; the file writes km
 _KM_SPANS = re.compile(r"^(line\.(gradients|curves|speed_limits)|disturbance\.regions)\[\d+\]$")
+#: a speed limit's value in m/s (vehicle/line.py); the file writes limit_kmh
+_LIMITS = re.compile(r"^line\.speed_limits\[\d+\]\.limit$")
+#: Largest km post the file may give, either sign [km]: as line files and the
+#: train-ground link allow (line/model.py MAX_POSITION_M); far beyond it positions lose
+#: their metre resolution, and 1e308 km is no position at all (inf m)
+MAX_KM_POST = 10_000.0
 
 
 def _file_error(exc: ConfigError) -> ScenarioError:
@@ -275,6 +293,8 @@ def _file_error(exc: ConfigError) -> ScenarioError:
         except TypeError:
             value = exc.value
         return ScenarioError(key, value, exc.allowed)
+    if _LIMITS.match(exc.field):
+        return ScenarioError(f"{exc.field}_kmh", mps_to_kmh(exc.value), exc.allowed)
     if _KM_SPANS.match(exc.field) and isinstance(exc.value, tuple):
         return ScenarioError(
             exc.field, tuple(v / 1000.0 for v in exc.value), "finite start_km < end_km"
@@ -404,9 +424,9 @@ def _config_keys(t: _Table, cls: type) -> dict[str, Any]:
 def _reference(t: _Table, line: Line, train: Train) -> BrakingCurve | DriveProfile:
     shape = t.string("shape", "smooth", ("smooth", "constant", "drive"))
     kw: dict[str, Any] = {}
-    t.put(kw, "start_km", "start_m", km_post_to_m)
+    t.put(kw, "start_km", "start_m", km_post_to_m, ge=-MAX_KM_POST, le=MAX_KM_POST)
     if shape == "drive":
-        t.put(kw, "stop_km", "stop_m", km_post_to_m)
+        t.put(kw, "stop_km", "stop_m", km_post_to_m, ge=-MAX_KM_POST, le=MAX_KM_POST)
         if "stop_m" not in kw:
             t.number("stop_km")  # required for this shape: raises naming the key
         t.put(kw, "cruise_kmh", "cruise_mps", kmh_to_mps)

@@ -19,7 +19,7 @@ from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line
-from railpilot.vehicle.train import Train
+from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS, Train
 
 #: the built-in controllers' names, from their registry (control/registry.py)
 CONTROLLERS = tuple(CONTROLLER_REGISTRY)
@@ -118,6 +118,12 @@ class SimSettings:
         # up to a day: a heavy-haul run over a whole line takes hours
         if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 86_400):
             raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 86400] s")
+        # an ATO cycles in well under a second; beyond a minute the controller would
+        # hardly act, and a huge period overflows the kernel's step counter (int64)
+        if not (np.isfinite(self.control_period_s) and 0 < self.control_period_s <= 60):
+            raise ConfigError(
+                "sim.control_period_s", self.control_period_s, "a period in (0, 60] s"
+            )
         ratio = self.control_period_s / self.dt_s
         if not (np.isfinite(ratio) and ratio >= 1 - 1e-9 and abs(ratio - round(ratio)) < 1e-6):
             raise ConfigError(
@@ -241,9 +247,13 @@ class Scenario:
 
     def __post_init__(self) -> None:
         if self.initial_speed_mps is not None and not (
-            np.isfinite(self.initial_speed_mps) and self.initial_speed_mps >= 0
+            np.isfinite(self.initial_speed_mps) and 0 <= self.initial_speed_mps <= MAX_SPEED_MPS
         ):
-            raise ConfigError("initial_speed_kmh", self.initial_speed_mps, "a speed >= 0")
+            raise ConfigError(
+                "initial_speed_kmh",
+                self.initial_speed_mps,
+                f"a speed >= 0 and <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)",
+            )
         if not (np.isfinite(self.brake_gain) and self.brake_gain >= 0):
             raise ConfigError("brake.gain", self.brake_gain, "a factor >= 0")
 

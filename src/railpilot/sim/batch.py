@@ -66,8 +66,9 @@ def _scale_davis(s: Scenario, f: float) -> Scenario:
 
 
 def _delay(s: Scenario, value: float) -> Scenario:
-    if isinstance(s.brake, EPBrake):
+    if isinstance(s.brake, EPBrake) and np.isfinite(value / s.sim.dt_s):
         # the EP brake's delay line works in whole steps: sample at the step's resolution
+        # (a value too large to round is left to the brake's own range check)
         value = round(value / s.sim.dt_s) * s.sim.dt_s
     return _brake_field("delay_s")(s, value)
 

@@ -72,8 +72,11 @@ class Disturbance:
             )
         if not (isinstance(self.seed, int | np.integer) and self.seed >= 0):
             raise ConfigError("disturbance.seed", self.seed, "an integer >= 0")
-        if not (np.isfinite(self.random_hold_s) and self.random_hold_s > 0):
-            raise ConfigError("disturbance.random_hold_s", self.random_hold_s, "a number > 0")
+        # up to the longest run (sim.duration_s): the hold is rounded to whole steps
+        if not (np.isfinite(self.random_hold_s) and 0 < self.random_hold_s <= 86_400):
+            raise ConfigError(
+                "disturbance.random_hold_s", self.random_hold_s, "a time in (0, 86400] s"
+            )
 
     def region_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """``(starts, ends, forces)`` for the kernel."""

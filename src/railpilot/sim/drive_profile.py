@@ -53,6 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from railpilot.errors import ConfigError
+from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
 
 #: Knots closer than this [m] are merged.
 MIN_CELL_M = 1e-6
@@ -249,6 +250,15 @@ class DriveProfile:
             ("reference.train_length_m", self.train_length_m),
         ):
             _check_non_negative(name, value)
+        # bounded: the target squares speeds (v**2), which overflows floats far beyond
+        for name, value in (
+            ("reference.cruise_mps", self.cruise_mps),
+            ("reference.v_start_mps", self.v_start_mps),
+        ):
+            if value > MAX_SPEED_MPS:
+                raise ConfigError(
+                    name, value, f"a speed <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)"
+                )
         dist = self.stop_m - self.start_m
         if dist / self.dx_m > MAX_GRID_POINTS:
             raise ConfigError(

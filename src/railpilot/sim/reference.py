@@ -18,6 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from railpilot.errors import ConfigError
+from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
+
+#: Longest coast before the braking point [s]: the longest run (``sim.duration_s``); the
+#: knots square it (``h**2``), which overflows floats far beyond
+MAX_COAST_S = 86_400.0
 
 
 @dataclass(frozen=True)
@@ -106,9 +111,9 @@ def constant_deceleration(
     The stop point is ``start_m + v0^2 / (2 decel)``.
     """
     _check_positive("reference.v0", v0_mps)
+    _check_speed("reference.v0", v0_mps)
     _check_positive("reference.decel", decel_mps2)
-    if not (np.isfinite(coast_s) and coast_s >= 0):
-        raise ConfigError("reference.coast_s", coast_s, "a finite number >= 0")
+    _check_coast(coast_s)
     if coast_s == 0.0:
         return BrakingCurve(start_m, v0_mps, -decel_mps2, (v0_mps / decel_mps2,), (0.0,))
     # coasting, then a jump to full deceleration at the braking point
@@ -166,6 +171,7 @@ def smooth_stop(
         ("reference.final_phase_speed", final_phase_speed_mps),
     ):
         _check_positive(name, value)
+    _check_speed("reference.v0", v0_mps)
     if final_decel_mps2 > decel_mps2:
         raise ConfigError(
             "reference.final_decel",
@@ -190,8 +196,7 @@ def smooth_stop(
             v0_mps,
             "a speed high enough for the phases (raise v0 or lower the jerk/final_phase_speed)",
         )
-    if not (np.isfinite(coast_s) and coast_s >= 0):
-        raise ConfigError("reference.coast_s", coast_s, "a finite number >= 0")
+    _check_coast(coast_s)
     durations = [coast_s, a / j, t_main, (a - af) / j, t_final]
     jerks = [0.0, -j, 0.0, j, 0.0]
     if ease_out:
@@ -203,3 +208,16 @@ def smooth_stop(
 def _check_positive(name: str, value: float) -> None:
     if not (np.isfinite(value) and value > 0):
         raise ConfigError(name, value, "a finite number > 0")
+
+
+def _check_speed(name: str, value: float) -> None:
+    # bounded: v0 squares into the knots' positions (overflow far beyond any train)
+    if not value <= MAX_SPEED_MPS:
+        raise ConfigError(
+            name, value, f"a speed > 0 and <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)"
+        )
+
+
+def _check_coast(coast_s: float) -> None:
+    if not (np.isfinite(coast_s) and 0 <= coast_s <= MAX_COAST_S):
+        raise ConfigError("reference.coast_s", coast_s, f"a time in [0, {MAX_COAST_S:g}] s")

@@ -13,6 +13,7 @@ import numpy as np
 
 from railpilot.errors import ConfigError
 from railpilot.units import curve_specific_resistance, gradient_permille_to_specific
+from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
 
 
 @dataclass(frozen=True)
@@ -63,8 +64,13 @@ class Line:
                 raise ConfigError(f"line.curves[{i}].radius_m", seg.value, "a radius > 0 [m]")
         for i, seg in enumerate(self.speed_limits):
             seg.check(f"line.speed_limits[{i}]")
-            if seg.value <= 0:
-                raise ConfigError(f"line.speed_limits[{i}].limit", seg.value, "a limit > 0")
+            # bounded above too: a limit squares into the drive profile's v**2 (overflow)
+            if not 0 < seg.value <= MAX_SPEED_MPS:
+                raise ConfigError(
+                    f"line.speed_limits[{i}].limit",
+                    seg.value,
+                    f"a limit > 0 and <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)",
+                )
 
     def resistance_profile(self) -> tuple[np.ndarray, np.ndarray]:
         """Additional specific resistance of the line as a step function.

@@ -7,7 +7,16 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from railpilot.errors import ConfigError
-from railpilot.units import Num
+from railpilot.units import Num, kmh_to_mps
+
+#: Fastest speed any scenario may give [km/h] (a reference, a limit, a start speed):
+#: above the fastest trains that run (maglev ~600 km/h); far beyond it the kinematics
+#: (``v**2``, ``v / a``) overflow floats mid-run
+MAX_SPEED_KMH = 600.0
+MAX_SPEED_MPS = float(kmh_to_mps(MAX_SPEED_KMH))
+#: Longest train [m]: as the ground side and the train-ground link allow
+#: (ground/occupancy.py, link/messages.py); the brake pipe's moments grow as ``L**4``
+MAX_LENGTH_M = 10_000.0
 
 
 def _positive(name: str, value: float) -> None:
@@ -77,6 +86,10 @@ class Train:
         _positive("train.mass_kg", self.mass_kg)
         _non_negative("train.rotating_mass_factor", self.rotating_mass_factor)
         _positive("train.length_m", self.length_m)
+        if self.length_m > MAX_LENGTH_M:
+            raise ConfigError(
+                "train.length_m", self.length_m, f"a length in (0, {MAX_LENGTH_M:g}] m"
+            )
         for name in ("davis_a0", "davis_a1", "davis_a2"):
             _non_negative(f"train.{name}", getattr(self, name))
         _positive("train.max_service_decel_mps2", self.max_service_decel_mps2)
