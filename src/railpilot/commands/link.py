@@ -22,7 +22,7 @@ import signal
 import socket
 import sys
 import time
-from collections.abc import Iterable
+from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any, TextIO
 
@@ -772,7 +772,7 @@ def _onboard_run(args: argparse.Namespace) -> int:
     keys = _keys(args.keys, args.no_auth)
     _seconds(args.seconds)
     _onboard_values(args)
-    try:
+    with _named_as_options(ONBOARD_OPTIONS):
         config = OnboardConfig(
             train_id=args.train_id,
             ground_id=args.ground_id,
@@ -782,11 +782,6 @@ def _onboard_run(args: argparse.Namespace) -> int:
             train_length_m=args.length_m,
             require_auth=keys is not None,
         )
-    except LinkConfigError as exc:
-        option = ONBOARD_OPTIONS.get(exc.field)
-        if option is None:
-            raise
-        raise LinkConfigError(option, exc.value, exc.allowed) from None
     trajectory = Trajectory(
         start_m=args.start_km * 1000.0,
         speed_mps=kmh_to_mps(args.speed_kmh),
@@ -821,6 +816,19 @@ def _onboard_run(args: argparse.Namespace) -> int:
     if args.json:
         print_json(summary)
     return 0
+
+
+@contextlib.contextmanager
+def _named_as_options(options: Mapping[str, str]) -> Iterator[None]:
+    """A :class:`LinkConfigError` about a setting the command line fills is raised again
+    naming its option (``train_length_m`` -> ``--length-m``); others pass unchanged."""
+    try:
+        yield
+    except LinkConfigError as exc:
+        option = options.get(exc.field)
+        if option is None:
+            raise
+        raise LinkConfigError(option, exc.value, exc.allowed) from None
 
 
 #: ``onboard run`` option of each onboard setting / message field it fills.
@@ -1191,20 +1199,13 @@ def _link_loadtest(args: argparse.Namespace) -> int:
         raise ConfigError(
             "--seconds", args.seconds, f"a finite number of seconds in [1, {MAX_SECONDS:g}]"
         )
-    try:
+    # each field of LoadtestOptions is filled by the option of its name
+    fields = ("trains", "seconds", "seed", "client_processes", "dispatch", "dashboard")
+    with _named_as_options({f: "--" + f.replace("_", "-") for f in (*fields, "screenshot")}):
         options = LoadtestOptions(
-            trains=args.trains,
-            seconds=args.seconds,
-            seed=args.seed,
-            client_processes=args.client_processes,
-            dispatch=args.dispatch,
-            dashboard=args.dashboard,
+            **{f: getattr(args, f) for f in fields},
             screenshot=None if args.screenshot is None else str(args.screenshot),
         )
-    except LinkConfigError as exc:  # name the option, not the field of LoadtestOptions
-        if not hasattr(args, exc.field):
-            raise
-        raise LinkConfigError("--" + exc.field.replace("_", "-"), exc.value, exc.allowed) from None
     try:
         check_dashboard(options)
     except ConfigError as exc:
