@@ -48,6 +48,7 @@ from railpilot.line.model import (
     Station,
 )
 from railpilot.link.messages import TravelDirection
+from railpilot.textfile import read_text
 from railpilot.units import km_post_to_m, kmh_to_mps
 
 T = TypeVar("T")
@@ -316,13 +317,7 @@ def parse_line(text: str, source: str = "<string>") -> RailLine:
 def read_line(path: str | os.PathLike[str]) -> RailLine:
     """Read the line file at ``path``."""
     file = Path(path)
-    try:
-        text = file.read_text(encoding="utf-8")
-    except (FileNotFoundError, IsADirectoryError, NotADirectoryError) as exc:
-        raise LineError("LINE", str(file), "an existing line TOML file") from exc
-    except UnicodeDecodeError as exc:
-        raise LineError("LINE", str(file), f"a UTF-8 text file ({exc})") from exc
-    return parse_line(text, source=str(file))
+    return parse_line(read_text(file, "LINE", "line TOML file", LineError), source=str(file))
 
 
 def load_line(name_or_path: str | os.PathLike[str]) -> RailLine:
