@@ -95,8 +95,10 @@ TOP_KEYS = {
     "controller": str,
 }
 SECTIONS = ("pid", "fuzzy", "fuzzy_pi", "brake", "coil", "train", "table", "metrics")
+#: Fastest initial speed [km/h] (and so the fastest speed the metrics can name)
+MAX_INITIAL_SPEED_KMH = 400.0
 #: Longest run [s]: the paper's runs take 100 s and an eddy brake stops a train from the
-#: fastest initial speed (400 km/h) in minutes; every step is kept for the metrics
+#: fastest initial speed in minutes; every step is kept for the metrics
 MAX_DURATION_S = 3600.0
 #: Largest torque demand [N m]: far above what a wheel's adhesion can take (the paper
 #: demands 3500-4500 N m)
@@ -154,11 +156,11 @@ def _check_metrics(metrics: Mapping[str, float]) -> None:
     if not 0 <= start <= MAX_DURATION_S:
         raise ScenarioError("metrics.steady_start_s", start, f"a time in [0, {MAX_DURATION_S:g}] s")
     end_kmh = metrics["steady_end_speed_kmh"]
-    if not 0 <= end_kmh <= 400:
+    if not 0 <= end_kmh <= MAX_INITIAL_SPEED_KMH:
         raise ScenarioError(
             "metrics.steady_end_speed_kmh",
             end_kmh,
-            "a speed in [0, 400] km/h (initial_speed_kmh's range)",
+            f"a speed in [0, {MAX_INITIAL_SPEED_KMH:g}] km/h (initial_speed_kmh's range)",
         )
 
 
@@ -210,8 +212,10 @@ class EddyScenario:
                 "torque_demand_nm", demand, f"a torque in (0, {MAX_TORQUE_DEMAND_NM:g}] N m"
             )
         speed = _number("initial_speed_kmh", data["initial_speed_kmh"])
-        if not 0 < speed <= 400:
-            raise ScenarioError("initial_speed_kmh", speed, "a speed in (0, 400] km/h")
+        if not 0 < speed <= MAX_INITIAL_SPEED_KMH:
+            raise ScenarioError(
+                "initial_speed_kmh", speed, f"a speed in (0, {MAX_INITIAL_SPEED_KMH:g}] km/h"
+            )
         duration = _number("duration_s", data.get("duration_s", 100.0))
         if not 0 < duration <= MAX_DURATION_S:
             raise ScenarioError("duration_s", duration, f"a time in (0, {MAX_DURATION_S:g}] s")
