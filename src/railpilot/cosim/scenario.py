@@ -185,11 +185,6 @@ def _integer(
     return value
 
 
-def _is_number(value: Any) -> bool:
-    """An int or float, not a bool (a file's list or table is no id, and is unhashable)."""
-    return isinstance(value, int | float) and not isinstance(value, bool)
-
-
 def _check_keys(table: Any, where: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
     if not isinstance(table, Mapping):
         raise ScenarioError(where or "scenario", table, "a table")
@@ -215,7 +210,8 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
         ends = []
         for key in ("from", "to"):
             value = table.get(key)
-            if not _is_number(value) or value not in station_ids:
+            # a number first: a file's list or table is no id, and is unhashable
+            if not is_finite_number(value) or value not in station_ids:
                 raise ScenarioError(f"{where}{key}", value, f"a station id of line '{line.name}'")
             ends.append(int(value))
         if ends[0] == ends[1]:
@@ -273,7 +269,7 @@ def _events(
         elif op == TRAIN_FAILURE:
             _check_keys(fields, where, ("train", "stand_min"))
             train = fields.get("train")
-            if not _is_number(train) or train not in train_ids:
+            if not is_finite_number(train) or train not in train_ids:
                 raise ScenarioError(f"{where}train", train, "the id of a train of the scenario")
             stand = _number(fields, "stand_min", where, 0.0, 24 * 60.0, 10.0)
             action = TrainFailure(int(train), stand * 60.0)
