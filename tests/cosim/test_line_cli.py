@@ -56,6 +56,8 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
     [
         (["--runs", "0"], "--runs"),
         (["--seed", "-3"], "--seed"),
+        (["--seed", str(2**63)], "--seed"),
+        (["--runs", "2", "--seed", str(2**63 - 1)], "--seed"),  # its second seed is too big
         (["--scheduler", "tcp://127.0.0.1:8786"], "--scheduler"),  # one run, no cluster
         (["--runs", "2", "--scheduler", "no-port"], "--scheduler"),
         (["--runs", "2", "--scheduler", "xyz://127.0.0.1:8786"], "--scheduler"),
@@ -77,15 +79,37 @@ def test_bad_arguments_are_refused(tmp_path, capsys, args, field):
         (["--http-port", "70000"], "--http-port"),
         (["--screenshot-at-min", "5"], "--screenshot-at-min"),  # without --screenshot
         (["--screenshot", "x.png", "--screenshot-at-min", "999"], "--screenshot-at-min"),
+        (["--seed", "-1"], "--seed"),
+        (["--seed", str(2**63)], "--seed"),
     ],
 )
-def test_line_run_refuses_bad_arguments_before_starting_anything(tmp_path, capsys, args, field):
+def test_line_run_refuses_bad_arguments_before_starting_anything(
+    tmp_path, capsys, monkeypatch, args, field
+):
+    import railpilot.cosim.live as live
+
+    def refuse(*args, **kwargs):
+        raise AssertionError("the live run started although its input is bad")
+
+    monkeypatch.setattr(live, "run_live", refuse)
     path = tmp_path / "tiny.toml"
     path.write_text(TINY)
     assert main(["line", "run", str(path), *args]) == 2
     captured = capsys.readouterr()
     assert field in captured.err and captured.out == ""
     assert not (tmp_path / "x.png").exists()
+
+
+@pytest.mark.parametrize("seed", [-1, 2**63, True, 1.0])
+def test_live_options_refuse_a_seed_out_of_range(tmp_path, seed):
+    from railpilot.cosim.live import LiveOptions
+    from railpilot.cosim.scenario import load_scenario
+    from railpilot.errors import ConfigError
+
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    with pytest.raises(ConfigError, match=r"^seed = .* a seed in \[0, 9223372036854775807\]"):
+        LiveOptions(seed=seed).check(load_scenario(path))
 
 
 @pytest.mark.parametrize("name", ["a_dir", "latin1.toml"])

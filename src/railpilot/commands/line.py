@@ -94,6 +94,8 @@ def run_live_command(args: argparse.Namespace) -> int:
     from railpilot.cosim.scenario import load_scenario
 
     scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        _check_seed(args.seed)
     if not (math.isfinite(args.speedup) and 1.0 <= args.speedup <= MAX_SPEEDUP):
         raise ConfigError("--speedup", args.speedup, f"a time scale in [1, {MAX_SPEEDUP:g}]")
     if args.until_min is not None and not (math.isfinite(args.until_min) and args.until_min > 0):
@@ -144,8 +146,7 @@ def run(args: argparse.Namespace) -> int:
     seed = scenario.seed if args.seed is None else args.seed
     if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:
         raise ConfigError("--runs", args.runs, "a number of runs in [1, 100000]")
-    if not 0 <= seed < 2**63 - args.runs:
-        raise ConfigError("--seed", seed, "a seed >= 0")
+    _check_seed(seed, args.runs)
     if args.scheduler is not None and args.runs == 1:
         # one run goes in this process: a cluster named for it would silently be idle
         raise ConfigError("--scheduler", args.scheduler, "a cluster only for --runs N > 1")
@@ -172,6 +173,19 @@ def run(args: argparse.Namespace) -> int:
     else:
         _print_text(out)
     return 0
+
+
+def _check_seed(seed: int, runs: int = 1) -> None:
+    """Refuse a ``--seed`` whose ``runs`` seeds (``seed`` on) are not all seeds a scenario
+    file may give, [0, ``MAX_SEED``] (cosim/scenario.py)."""
+    from railpilot.cosim.scenario import MAX_SEED
+
+    last = MAX_SEED - (runs - 1)
+    if not 0 <= seed <= last:
+        allowed = f"a seed in [0, {last}]"
+        if runs > 1:
+            allowed += f" (--runs {runs} runs the seeds from it on, each at most {MAX_SEED})"
+        raise ConfigError("--seed", seed, allowed)
 
 
 def _sweep_run(path: str, seed: int) -> dict[str, Any]:

@@ -53,7 +53,14 @@ from .channel import ChannelCounters, channel_totals
 from .driver import SectionRun, Service
 from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
 from .live_wire import MAX_LINE, hello_name, receive, send
-from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure, load_scenario
+from .scenario import (
+    MAX_SEED,
+    GroundRestart,
+    LineScenario,
+    ScenarioEvent,
+    TrainFailure,
+    load_scenario,
+)
 from .trackside import CabView, Trackside, TrainSeen, TrainShape, static_overspeeds
 
 #: the default time scale (a 9-hour day in 9 minutes)
@@ -96,6 +103,14 @@ class LiveOptions:
     on_dashboard: Callable[[str, str], None] | None = None
 
     def check(self, scenario: LineScenario) -> None:
+        if self.seed is not None and (
+            not isinstance(self.seed, int)
+            or isinstance(self.seed, bool)
+            or not 0 <= self.seed <= MAX_SEED
+        ):
+            raise ConfigError(
+                "seed", self.seed, f"None (the scenario's) or a seed in [0, {MAX_SEED}]"
+            )
         if not is_finite_number(self.speedup) or not 1.0 <= self.speedup <= MAX_SPEEDUP:
             raise ConfigError("speedup", self.speedup, f"a time scale in [1, {MAX_SPEEDUP:g}]")
         if self.until_s is not None and (

@@ -110,6 +110,8 @@ SERVICE_KEYS = (
 #: the events that are not a dispatcher's operation
 TRAIN_FAILURE = "train_failure"
 GROUND_RESTART = "ground_restart"
+#: the largest seed (a run's randomness: the radio's and the reconnects')
+MAX_SEED = 2**63 - 1
 #: the link epoch the run starts at when the file gives none [s] (2027-01-15 08:00 UTC)
 DEFAULT_EPOCH_S = 1_800_000_000.0
 
@@ -321,7 +323,7 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
         raise ScenarioError("line", line_name, "a shipped line name or a line file path")
     line = load_line(line_name)
     margin = _number(data, "margin_kmh", "", 0.0, 50.0, 5.0)
-    seed = _integer(data, "seed", "", 0, 2**63 - 1, 0)
+    seed = _integer(data, "seed", "", 0, MAX_SEED, 0)
     duration_s = _number(data, "duration_h", "", 0.01, 7 * 24.0, 9.0) * 3600.0
     epoch_s = _number(data, "start_epoch_s", "", 1.0, 4.0e9, DEFAULT_EPOCH_S)
     channel_table = data.get("channel", {})
