@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import csv
 import io
 import json
 import re
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 from railpilot.cli import main
-from railpilot.commands.line import _dig, _quantile
+from railpilot.commands.line import SWEPT, _dig, _quantile
 
 TINY = """
 name = "tiny"
@@ -185,6 +186,34 @@ def test_a_sweep_summarises_the_runs_it_would_give_one_by_one(tiny_runs, capsys)
     progress = [line for line in captured.err.splitlines() if line.startswith("seed ")]
     assert sorted(line.split(":")[0] for line in progress) == ["seed 5", "seed 6", "seed 7"]
     assert re.fullmatch(r"seed \d: \d+ TSR violations, .* \(3/3, \d+ s\)", progress[-1])
+
+
+def test_a_sweep_with_out_writes_each_seeds_kpis_and_what_it_printed(tiny_runs, tmp_path, capsys):
+    path, runs = tiny_runs
+    folder = tmp_path / "sweep"  # not there yet: made
+    args = ["line", "simulate", str(path), "--runs", "2", "--seed", "5", "--json"]
+    assert main([*args, "--out", str(folder)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    table, summary = folder / "runs.csv", folder / "sweep.json"
+    assert out["files"] == [str(table), str(summary)]
+    assert json.loads(summary.read_text(encoding="utf-8")) == out
+    with table.open(newline="", encoding="utf-8") as f:
+        rows = list(csv.DictReader(f))
+    assert [row["seed"] for row in rows] == ["5", "6"]
+    assert list(rows[0]) == ["seed", *SWEPT]
+    for row in rows:
+        single = runs[int(row["seed"])]  # the seed run alone: line simulate --seed S
+        for key in SWEPT:
+            if key == "realtime_factor":  # the wall clock's, not the seed's
+                assert float(row[key]) > 0
+                continue
+            expected = _dig(single, key)
+            if expected is None:  # a KPI the run has none of
+                assert row[key] == "", key
+            else:
+                assert json.loads(row[key]) == expected, key
+    # the seeds differ (the lossy radio), so a row copied from another seed would show
+    assert rows[0]["link.connects"] != rows[1]["link.connects"]
 
 
 def test_a_sweep_on_a_dask_cluster_gives_the_same_summary(tiny_runs, capsys):

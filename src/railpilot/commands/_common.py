@@ -23,9 +23,14 @@ def _clean(value: Any) -> Any:
     return value
 
 
+def json_text(obj: Any) -> str:
+    """``obj`` as :func:`print_json` prints it (NaN/inf as null), for a file."""
+    return json.dumps(_clean(obj), indent=2, default=str) + "\n"
+
+
 def print_json(obj: Any) -> None:
     """Print exactly one JSON object on stdout."""
-    sys.stdout.write(json.dumps(_clean(obj), indent=2, default=str) + "\n")
+    sys.stdout.write(json_text(obj))
 
 
 def json_line(obj: Any) -> str:

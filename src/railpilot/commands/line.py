@@ -11,7 +11,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from railpilot.commands._common import log, out_dir_argument, print_json
+from railpilot.commands._common import json_text, log, out_dir_argument, print_json
 from railpilot.errors import ConfigError
 
 #: the KPIs a sweep gives the distribution of (dotted paths into ``LineResult.kpis()``)
@@ -57,7 +57,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--runs", type=int, default=1, help="seeds to sweep (default 1)")
     p.add_argument("--no-baseline", action="store_true", help="skip the baseline run")
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler for --runs")
-    p.add_argument("--out", type=out_dir_argument, help="folder for the time-distance figure")
+    p.add_argument(
+        "--out",
+        type=out_dir_argument,
+        help="folder for the time-distance figure (one run), or for runs.csv (each seed's "
+        "KPIs) and sweep.json (what is printed) of a sweep (--runs N)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
     p = sub.add_parser(
@@ -151,7 +156,9 @@ def run(args: argparse.Namespace) -> int:
         # one run goes in this process: a cluster named for it would silently be idle
         raise ConfigError("--scheduler", args.scheduler, "a cluster only for --runs N > 1")
     if args.runs > 1:
-        out = sweep(args.scenario, seed, args.runs, args.scheduler)
+        out, results = sweep(args.scenario, seed, args.runs, args.scheduler)
+        if args.out is not None:  # only now: a sweep that failed has written nothing
+            out["files"] = _write_sweep(args.out, out, results)
     else:
         result = run_line(scenario, seed=seed)
         log(f"{scenario.name}: {result.sim_s:.0f} s simulated in {result.wall_s:.1f} s")
@@ -196,8 +203,11 @@ def _sweep_run(path: str, seed: int) -> dict[str, Any]:
     return run_line(load_scenario(path), seed=seed).kpis()
 
 
-def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, Any]:
-    """``runs`` seeds from ``seed`` on, and the spread of each KPI (:data:`SWEPT`)."""
+def sweep(
+    path: Path, seed: int, runs: int, scheduler: str | None
+) -> tuple[dict[str, Any], list[dict[str, Any]]]:
+    """``runs`` seeds from ``seed`` on: the spread of each KPI (:data:`SWEPT`), and each
+    run's KPIs in the order of its seed."""
     seeds = list(range(seed, seed + runs))
     started = time.perf_counter()
     if scheduler is None:
@@ -249,7 +259,27 @@ def sweep(path: Path, seed: int, runs: int, scheduler: str | None) -> dict[str, 
                 "min_seed": min(found)[1],
                 "max_seed": max(found, key=lambda pair: (pair[0], -pair[1]))[1],
             }
-    return out
+    return out, results
+
+
+def _write_sweep(folder: Path, out: dict[str, Any], results: list[dict[str, Any]]) -> list[str]:
+    """``runs.csv`` (a row per seed: the seed and each KPI of :data:`SWEPT`, empty where
+    the run has none) and ``sweep.json`` (``out`` as printed, these two files listed) in
+    ``folder``; returns their paths."""
+    import csv
+
+    folder.mkdir(parents=True, exist_ok=True)
+    table = folder / "runs.csv"
+    summary = folder / "sweep.json"
+    files = [str(table), str(summary)]
+    with table.open("w", newline="", encoding="utf-8") as f:
+        writer = csv.writer(f)
+        writer.writerow(["seed", *SWEPT])
+        for run in results:
+            values = (_dig(run, key) for key in SWEPT)
+            writer.writerow([run["seed"], *("" if v is None else v for v in values)])
+    summary.write_text(json_text({**out, "files": files}), encoding="utf-8")
+    return files
 
 
 def _collect(
@@ -286,6 +316,8 @@ def _quantile(sorted_values: list[float], q: float) -> float:
 
 
 def _print_text(out: dict[str, Any]) -> None:
+    for path in out.get("files", []):
+        log(f"wrote {path}")
     if "kpis" in out:
         print(f"{out['scenario']}: {out['runs']} runs, seeds {out['seeds'][0]}-{out['seeds'][1]}")
         for key, stats in out["kpis"].items():
