@@ -63,3 +63,21 @@ def test_user_csv_table(tmp_path):
     result, metrics = s.run("pid")
     assert result.metadata["table_source"] == "fe.csv"
     assert metrics.rise_time_s > 0
+
+
+@pytest.mark.parametrize("dt_s", [1e-12, 5e-324])
+def test_simulate_eddy_refuses_more_steps_than_it_may_take(dt_s):
+    # the scenario refuses such a step at load (tests/scenario/test_value_bounds.py); the
+    # simulator itself does too, before it allocates a row per step
+    from railpilot.control.open_loop import OpenLoop
+    from railpilot.eddy.simulate import MAX_STEPS, simulate_eddy
+    from railpilot.eddy.table import TorqueTable
+    from railpilot.errors import ConfigError
+
+    table = TorqueTable.from_model(max_current_a=50.0, current_step_a=25.0, speed_step_kmh=100.0)
+    with pytest.raises(ConfigError) as info:
+        simulate_eddy(
+            OpenLoop(1.0), table=table, torque_demand_nm=1.0, initial_speed_mps=10.0, dt_s=dt_s
+        )
+    assert info.value.field == "dt_s"
+    assert f"{MAX_STEPS:,}" in info.value.allowed

@@ -19,6 +19,8 @@ from railpilot.scenario.loader import read_toml, scenario_and_spec_from_mapping
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
 HUGE = 1e308
+#: the smallest float > 0 (subnormal): duration / TINY is inf
+TINY = 5e-324
 INT64_MAX = 2**63 - 1
 
 
@@ -46,6 +48,9 @@ CASES = [
     ("eddy_case2", ("metrics", "steady_start_s"), -1, "metrics.steady_start_s"),
     ("eddy_case2", ("metrics", "steady_start_s"), HUGE, "metrics.steady_start_s"),
     ("eddy_case2", ("metrics", "steady_end_speed_kmh"), HUGE, "metrics.steady_end_speed_kmh"),
+    # steps of a run (eddy/simulate.py MAX_STEPS): 1e14 steps, or infinitely many
+    ("eddy_case1", ("dt_s",), 1e-12, "dt_s"),
+    ("eddy_case2", ("dt_s",), TINY, "dt_s"),
     # braking scenarios (railpilot.scenario.loader)
     ("paper000_smarc_ep", ("reference", "v0_kmh"), HUGE, "reference.v0_kmh"),
     ("paper000_smarc_ep", ("reference", "coast_s"), HUGE, "reference.coast_s"),
@@ -55,6 +60,12 @@ CASES = [
     ("heavy_haul_stop", ("disturbance", "random_hold_s"), HUGE, "disturbance.random_hold_s"),
     ("heavy_haul_stop", ("sim", "control_period_s"), INT64_MAX, "sim.control_period_s"),
     ("paper002_realistic", ("sim", "control_period_s"), INT64_MAX, "sim.control_period_s"),
+    # steps of a run (scenario/model.py MAX_STEPS): 7e13, 2e8 and infinitely many
+    ("paper000_smarc_ep", ("sim", "dt_s"), 1e-12, "sim.dt_s"),
+    ("heavy_haul_stop", ("sim", "dt_s"), 1e-6, "sim.dt_s"),
+    ("paper000_smarc_ep", ("sim", "dt_s"), TINY, "sim.dt_s"),
+    # a stride beyond 64 bits: the kernel refused its arguments mid-run
+    ("paper000_smarc_ep", ("sim", "record_every"), 2**64, "sim.record_every"),
     (
         "heavy_haul_run",
         ("line", "speed_limits", 0, "limit_kmh"),
@@ -111,6 +122,13 @@ def test_an_absurd_value_is_an_error_naming_the_key_as_written(
         ("heavy_haul_run", ("line", "speed_limits", 0, "limit_kmh"), 600.0),
         ("eddy_case2", ("metrics", "steady_start_s"), 0.0),
         ("eddy_case2", ("table", "current_step_a"), 500.0),
+        # the finest steps: 36e6 steps of eddy_case1's 100 s, 1e7 of heavy_haul_stop's
+        # 200 s (whole steps of its 0.2 s control period); and the usual ones
+        ("eddy_case1", ("dt_s",), 100.0 / 36_000_000),
+        ("eddy_case1", ("dt_s",), 1e-4),
+        ("heavy_haul_stop", ("sim", "dt_s"), 200.0 / 10_000_000),
+        ("paper000_smarc_ep", ("sim", "dt_s"), 0.01),
+        ("paper000_smarc_ep", ("sim", "record_every"), 10_000_000),
     ],
 )
 def test_the_bounds_themselves_are_allowed(example: str, path: tuple[Any, ...], value: Any) -> None:

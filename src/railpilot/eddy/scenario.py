@@ -42,7 +42,7 @@ from railpilot.control.open_loop import OpenLoop
 from railpilot.control.pid import PID
 from railpilot.eddy.coil import CoilParams
 from railpilot.eddy.metrics import StepMetrics, step_metrics
-from railpilot.eddy.simulate import EddyResult, simulate_eddy
+from railpilot.eddy.simulate import MAX_STEPS, EddyResult, simulate_eddy
 from railpilot.eddy.table import TorqueTable, load_torque_table_csv
 from railpilot.eddy.torque_model import EddyBrakeParams
 from railpilot.eddy.train import TrainParams
@@ -222,6 +222,14 @@ class EddyScenario:
         dt = _number("dt_s", data.get("dt_s", 1e-4))
         if not 0 < dt <= min(duration, 1e-2):
             raise ScenarioError("dt_s", dt, f"a step in (0, {min(duration, 1e-2)}] s")
+        steps = duration / dt  # inf for a subnormal step
+        if not (math.isfinite(steps) and round(steps) <= MAX_STEPS):
+            raise ScenarioError(
+                "dt_s",
+                dt,
+                f"a step in [{duration / MAX_STEPS:g}, {min(duration, 1e-2)}] s: at most "
+                f"{MAX_STEPS:,} steps of duration_s = {duration:g} s (simulate.py MAX_STEPS)",
+            )
         record_every = int(_number("record_every", data.get("record_every", 10), integer=True))
         if record_every < 1:
             raise ScenarioError("record_every", record_every, "an integer >= 1")

@@ -51,6 +51,14 @@ from railpilot.units import mps_to_kmh
 
 KIND_OPEN_LOOP, KIND_PID, KIND_FUZZY, KIND_FUZZY_PI = range(4)
 
+#: Most steps one run may take (``duration_s / dt_s``): the longest scenario run (an
+#: hour, eddy/scenario.py ``MAX_DURATION_S``) at the paper's 1e-4 s step, 36 times the
+#: paper's (and the examples') 100 s runs of 1e6 steps. A scenario run keeps every step
+#: for the metrics (8 channels; about 100 bytes and 1.5 us a step measured): about 3.6 GB
+#: and a minute at the limit. A finer step is allowed for a shorter run; without a bound
+#: ``dt_s = 1e-12`` asked for 1e14 steps (memory error) and 5e-324 for infinitely many.
+MAX_STEPS = 36_000_000
+
 #: Controller classes the compiled loop can run, and their kernel codes.
 CONTROLLER_KINDS: dict[type[Controller], int] = {
     OpenLoop: KIND_OPEN_LOOP,
@@ -255,9 +263,14 @@ def simulate_eddy(
     for name, value, ok in checks:
         if not (np.isfinite(value) and ok):
             raise ConfigError(name, value, "a finite number in range (see simulate_eddy docs)")
+    steps = duration_s / dt_s
+    if not (np.isfinite(steps) and round(steps) <= MAX_STEPS):
+        raise ConfigError(
+            "dt_s", dt_s, f"a step >= duration_s / {MAX_STEPS:,} = {duration_s / MAX_STEPS:g} s"
+        )
     if int(record_every) < 1:
         raise ConfigError("record_every", record_every, "an integer >= 1")
-    n_steps = round(duration_s / dt_s)
+    n_steps = round(steps)
     record_every = int(record_every)
     n_rec = n_steps // record_every + 1
     out = np.empty((8, n_rec))

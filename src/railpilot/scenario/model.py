@@ -100,6 +100,16 @@ class ControllerSpec:
             )
 
 
+#: Most solver steps one run may take (``sim.duration_s / sim.dt_s``): the longest run (a
+#: day, 86,400 s) at the default 0.01 s step takes 8.64e6; the examples take at most
+#: 24,000 (heavy_haul_run.toml: 2,400 s at 0.1 s) and the defaults 7,000. A run samples
+#: the reference at every step and, with ``record_every = 1``, records every step's 12
+#: channels: about 300 bytes a step measured, some 3 GB at the limit. A finer step is
+#: allowed for a shorter run; without a bound ``dt_s = 1e-12`` asked for 1e14 steps
+#: (memory error) and 5e-324 for infinitely many (OverflowError).
+MAX_STEPS = 10_000_000
+
+
 @dataclass(frozen=True)
 class SimSettings:
     """Solver step [s], duration [s], ATO control period [s], recorder decimation."""
@@ -118,6 +128,14 @@ class SimSettings:
         # up to a day: a heavy-haul run over a whole line takes hours
         if not (np.isfinite(self.duration_s) and self.dt_s < self.duration_s <= 86_400):
             raise ConfigError("sim.duration_s", self.duration_s, "a duration in (dt_s, 86400] s")
+        steps = self.duration_s / self.dt_s  # inf for a subnormal step
+        if not (np.isfinite(steps) and round(steps) <= MAX_STEPS):
+            raise ConfigError(
+                "sim.dt_s",
+                self.dt_s,
+                f"a step in [{self.duration_s / MAX_STEPS:g}, 0.1] s: at most {MAX_STEPS:,} "
+                f"steps of sim.duration_s = {self.duration_s:g} s",
+            )
         # an ATO cycles in well under a second; beyond a minute the controller would
         # hardly act, and a huge period overflows the kernel's step counter (int64)
         if not (np.isfinite(self.control_period_s) and 0 < self.control_period_s <= 60):
@@ -131,8 +149,12 @@ class SimSettings:
                 self.control_period_s,
                 f"a whole multiple (>= 1) of sim.dt_s = {self.dt_s}",
             )
-        if not (isinstance(self.record_every, int) and self.record_every >= 1):
-            raise ConfigError("sim.record_every", self.record_every, "an integer >= 1")
+        # a stride beyond the run's steps records its first step only; one beyond 64 bits
+        # made the kernel refuse its arguments mid-run (a Numba TypingError)
+        if not (isinstance(self.record_every, int) and 1 <= self.record_every <= MAX_STEPS):
+            raise ConfigError(
+                "sim.record_every", self.record_every, f"an integer in [1, {MAX_STEPS:,}]"
+            )
 
     @property
     def n_steps(self) -> int:
