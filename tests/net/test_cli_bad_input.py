@@ -4,6 +4,7 @@ server that did not start)."""
 
 from __future__ import annotations
 
+import os
 import socket
 from collections.abc import Iterator
 from pathlib import Path
@@ -220,3 +221,83 @@ def test_seconds_must_be_a_finite_number_above_zero(
     error = _error(capsys)
     assert "--seconds = " in error and "expected" in error
     assert list(tmp_path.iterdir()) == []
+
+
+# --- 6. the proxy's --inject: a readable file, or wire bytes in hex ------------------------
+
+PROXY = ["link", "proxy", "--listen", "127.0.0.1:0", "--upstream", "127.0.0.1:1"]
+
+
+@pytest.mark.parametrize(
+    ("name", "problem"),
+    [
+        ("frame.bin", "no such file, and not hex"),  # a mistyped name: was sent as its letters
+        ("a_dir", "it is a directory"),
+        ("empty.bin", "the file is empty"),
+        ("unreadable.bin", "the file cannot be read (Permission denied)"),
+        ("", "no such file, and not hex"),
+    ],
+)
+def test_an_inject_that_is_no_readable_file_and_no_hex_is_refused(
+    name: str,
+    problem: str,
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    never_run: None,
+) -> None:
+    if name == "unreadable.bin" and os.geteuid() == 0:
+        pytest.skip("root may read any file")
+    (tmp_path / "a_dir").mkdir()
+    (tmp_path / "empty.bin").write_bytes(b"")
+    (tmp_path / "unreadable.bin").write_bytes(b"\x7e\x01")
+    (tmp_path / "unreadable.bin").chmod(0)
+    value = str(tmp_path / name) if name else ""
+    assert main([*PROXY, "--seconds", "5", "--inject", value]) == 2
+    error = _error(capsys)
+    assert (
+        f"--inject = {value!r} is not allowed: expected a readable file, or wire bytes in hex"
+        in error
+    )
+    assert problem in error
+
+
+@pytest.mark.parametrize(
+    ("value", "wire"),
+    [
+        ("7e 01:0x02", b"\x7e\x01\x02"),
+        ("ab" * 200, b"\xab" * 200),  # longer than a file name may be: hex, not an error
+        ("hex.txt", b"\x7e\x01\x02"),  # hex text in a file: the bytes it spells
+        ("raw.bin", b"\x7e\x01zz"),  # anything else in a file: its bytes
+    ],
+)
+def test_an_inject_file_gives_its_bytes_and_hex_gives_the_bytes_it_spells(
+    value: str, wire: bytes, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    import railpilot.net.proxy as proxy
+
+    (tmp_path / "hex.txt").write_text("# a frame\n7e 01\n02\n")
+    (tmp_path / "raw.bin").write_bytes(b"\x7e\x01zz")
+    monkeypatch.chdir(tmp_path)
+    made: list[Any] = []
+    real = proxy.ProxyOptions
+
+    def options(**fields: Any) -> Any:
+        made.append(real(**fields))
+        return made[-1]
+
+    def started(coroutine: Any) -> dict[str, Any]:  # what the proxy would do: nothing here
+        coroutine.close()
+        return {"up": {}, "down": {}}
+
+    monkeypatch.setattr(proxy, "ProxyOptions", options)
+    monkeypatch.setattr(link_commands, "_run_async", started)
+    assert main([*PROXY, "--seconds", "5", "--inject", value]) == 0
+    assert [o.inject for o in made] == [wire]
+
+
+def test_inject_hex_that_does_not_pair_up_is_refused_naming_where(
+    capsys: pytest.CaptureFixture[str], never_run: None
+) -> None:
+    assert main([*PROXY, "--seconds", "5", "--inject", "7e 0"]) == 2
+    error = _error(capsys)
+    assert "--inject: line 1, column 4: odd number of hex digits" in error

@@ -20,6 +20,7 @@ import re
 import secrets
 import signal
 import socket
+import stat
 import sys
 import time
 from collections.abc import Iterable, Iterator, Mapping
@@ -430,7 +431,9 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--corrupt", type=_probability, default=0.0, help="bit-flip probability")
     p.add_argument("--delay", type=float, default=0.0, metavar="MS", help="delay frames [ms]")
     p.add_argument("--delay-p", type=_probability, default=1.0, help="share delayed [1]")
-    p.add_argument("--inject", metavar="FILE|HEX", help="wire bytes to insert once")
+    p.add_argument(
+        "--inject", metavar="FILE|HEX", help="wire bytes to insert once: a file's, or in hex"
+    )
     p.add_argument("--inject-after", type=int, default=3, help="insert after N frames [3]")
     p.add_argument("--inject-direction", choices=["up", "down"], default="up", help="[up]")
     p.add_argument("--split", action="store_true", help="write frames in random pieces")
@@ -1142,15 +1145,7 @@ def _link_proxy(args: argparse.Namespace) -> int:
     _loopback("--listen", lhost)
     _loopback("--upstream", uhost)
     _seconds(args.seconds)
-    inject = b""
-    if args.inject:
-        path = Path(args.inject)
-        raw = path.read_bytes() if path.is_file() else args.inject.encode("ascii", "replace")
-        inject = (
-            parse_hex(raw, "--inject", what_next="the proxy was not started")
-            if _looks_hex(raw)
-            else raw
-        )
+    inject = b"" if args.inject is None else _inject_bytes(args.inject)
     directions = ("up", "down") if args.faults_on == "both" else (args.faults_on,)
     options = ProxyOptions(
         drop=args.drop,
@@ -1188,6 +1183,47 @@ def _link_proxy(args: argparse.Namespace) -> int:
         for direction in ("up", "down"):
             print(f"{direction}: {report[direction]}")
     return 0
+
+
+#: What ``link proxy --inject`` takes (docs/link-operations.md, "Fault-injection proxy").
+_INJECT_ALLOWED = (
+    "a readable file, or wire bytes in hex (0-9 a-f A-F, whitespace, ':', '0x' prefixes)"
+)
+
+
+def _inject_bytes(value: str) -> bytes:
+    """``--inject FILE|HEX``: the bytes of the file ``value`` names (parsed when they are hex
+    text), else ``value`` itself when it is hex; anything else is refused, never injected
+    as the characters of a mistyped file name."""
+    try:
+        mode: int | None = os.stat(value).st_mode
+    except OSError as exc:  # a hex string longer than a file name may be is no file either
+        if exc.errno not in (errno.ENOENT, errno.ENOTDIR, errno.ENAMETOOLONG):
+            raise LinkConfigError(
+                "--inject", value, f"{_INJECT_ALLOWED}; it cannot be read ({exc.strerror})"
+            ) from None
+        mode = None
+    if mode is None:
+        data = value.encode("utf-8", "surrogateescape")
+        if not _looks_hex(data):
+            raise LinkConfigError(
+                "--inject", value, f"{_INJECT_ALLOWED}; no such file, and not hex"
+            )
+    elif not stat.S_ISREG(mode):
+        what = "a directory" if stat.S_ISDIR(mode) else "not a regular file"
+        raise LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; it is {what}")
+    else:
+        try:
+            data = Path(value).read_bytes()
+        except OSError as exc:
+            raise LinkConfigError(
+                "--inject", value, f"{_INJECT_ALLOWED}; the file cannot be read ({exc.strerror})"
+            ) from None
+        if not data:
+            raise LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; the file is empty")
+    if not _looks_hex(data):
+        return data
+    return parse_hex(data, "--inject", what_next="the proxy was not started")
 
 
 def _link_loadtest(args: argparse.Namespace) -> int:
