@@ -301,3 +301,37 @@ def test_inject_hex_that_does_not_pair_up_is_refused_naming_where(
     assert main([*PROXY, "--seconds", "5", "--inject", "7e 0"]) == 2
     error = _error(capsys)
     assert "--inject: line 1, column 4: odd number of hex digits" in error
+
+
+# --- 7. --no-auth and --keys: one or the other --------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "argv",
+    [
+        ["ground", "serve", "--port", "0", "--admin-port", "-1", "--seconds", "5"],
+        ["onboard", "run", "--server", "127.0.0.1:1", "--train-id", "5", "--seconds", "5"],
+    ],
+    ids=["ground", "onboard"],
+)
+def test_no_auth_with_a_key_file_is_refused(
+    argv: list[str],
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
+    never_run: None,
+) -> None:
+    import railpilot.link as link
+
+    keys = tmp_path / "keys.toml"
+    keys.write_text(f'[[train]]\nid = 5\nactive_key = 1\n[train.keys]\n1 = "{KEY_HEX}"\n')
+    keys.chmod(0o600)
+    read: list[Any] = []
+    monkeypatch.setattr(link, "load_key_file", lambda path: read.append(path))
+    extra = ["--db", str(tmp_path / "ground.db")] if argv[0] == "ground" else []
+    assert main([*argv, *extra, "--keys", str(keys), "--no-auth"]) == 2
+    error = _error(capsys)
+    assert f"--no-auth = 'with --keys {keys}' is not allowed" in error
+    assert "one or the other" in error
+    assert read == []  # refused before the key file is read
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["keys.toml"]  # no store

@@ -109,9 +109,17 @@ def _host_failed(exc: Exception) -> bool:
 
 
 def _keys(path: Path | None, no_auth: bool) -> Any:
-    """Load the key file (refused when group/other may read it); None with --no-auth."""
+    """Load the key file (refused when group/other may read it); None with --no-auth.
+    Both given is refused: which of the two was meant is not ours to guess."""
     from railpilot.link import load_key_file
 
+    if path is not None and no_auth:
+        raise LinkConfigError(
+            "--no-auth",
+            f"with --keys {path}",
+            "one or the other: --keys FILE for an authenticated link, --no-auth (without "
+            "--keys) for an unauthenticated test link",
+        )
     if path is None:
         if not no_auth:
             raise LinkConfigError(
@@ -1015,7 +1023,9 @@ def _is_raw(data: bytes) -> bool:
 def _link_decode(args: argparse.Namespace) -> int:
     from railpilot.link import decode_stream
 
-    keys = _keys(args.keys, True)  # refuse an unsafe key file before reading anything
+    # --keys is optional here (MACs are checked only with it); an unsafe key file is
+    # refused before anything is read
+    keys = _keys(args.keys, no_auth=args.keys is None)
     data = _read_input(args.file)
     if args.hex or (not args.raw and not _is_raw(data)):
         # Every input error is raised here, before anything is printed.
