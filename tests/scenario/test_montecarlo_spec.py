@@ -83,6 +83,17 @@ BAD_DISTRIBUTIONS = [
         ("train.mass_t", "uniform", 1.0, math.inf),
         "montecarlo.vary.train.mass_t.min",
     ),
+    (
+        "davis scale above 10",
+        ("train.davis_scale", "uniform", 0.8, 10.5),
+        "montecarlo.vary.train.davis_scale.max",
+    ),
+    ("brake gain above 10", ("brake.gain", "uniform", 0.9, 11.0), "montecarlo.vary.brake.gain.max"),
+    (
+        "adhesion above 1",
+        ("realism.adhesion", "uniform", 0.1, 1.5),
+        "montecarlo.vary.realism.adhesion.max",
+    ),
 ]
 
 

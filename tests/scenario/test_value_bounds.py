@@ -89,6 +89,33 @@ CASES = [
         {"dist": "uniform", "min": 60.0, "max": HUGE},
         "montecarlo.vary.initial_speed_kmh",
     ),
+    # factors and a coefficient with no upper bound of their own (sim/sweep.py
+    # VARIABLE_MAXIMA): they passed and ran to nonsense stops
+    (
+        "paper000_montecarlo",
+        ("montecarlo", "vary", "train.davis_scale", "max"),
+        HUGE,
+        "montecarlo.vary.train.davis_scale.max",
+    ),
+    (
+        "heavy_haul_stop",
+        ("montecarlo", "vary", "brake.gain", "max"),
+        HUGE,
+        "montecarlo.vary.brake.gain.max",
+    ),
+    (
+        "paper002_realistic",
+        ("montecarlo", "vary", "realism.adhesion", "max"),
+        HUGE,
+        "montecarlo.vary.realism.adhesion.max",
+    ),
+    (
+        "paper002_realistic",
+        ("montecarlo", "vary", "realism.adhesion"),
+        {"dist": "normal", "mean": 0.14, "std": 0.02, "min": 0.1},  # no max: up to inf
+        "montecarlo.vary.realism.adhesion.max",
+    ),
+    ("paper002_realistic", ("realism", "adhesion"), HUGE, "realism.adhesion"),
 ]
 
 
@@ -129,6 +156,13 @@ def test_an_absurd_value_is_an_error_naming_the_key_as_written(
         ("heavy_haul_stop", ("sim", "dt_s"), 200.0 / 10_000_000),
         ("paper000_smarc_ep", ("sim", "dt_s"), 0.01),
         ("paper000_smarc_ep", ("sim", "record_every"), 10_000_000),
+        # the largest factors and adhesion, and usual ones
+        ("paper000_montecarlo", ("montecarlo", "vary", "train.davis_scale", "max"), 10.0),
+        ("heavy_haul_stop", ("montecarlo", "vary", "brake.gain", "max"), 10.0),
+        ("heavy_haul_stop", ("montecarlo", "vary", "brake.gain", "max"), 1.2),
+        ("paper002_realistic", ("montecarlo", "vary", "realism.adhesion", "max"), 1.0),
+        ("paper002_realistic", ("realism", "adhesion"), 1.0),
+        ("paper002_realistic", ("realism", "adhesion"), 0.15),
     ],
 )
 def test_the_bounds_themselves_are_allowed(example: str, path: tuple[Any, ...], value: Any) -> None:

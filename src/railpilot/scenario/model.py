@@ -17,6 +17,7 @@ from railpilot.sim.disturbance import Disturbance
 from railpilot.sim.drive_profile import DriveProfile, PlannedProfile, drive_profile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve, constant_deceleration, smooth_stop
+from railpilot.sim.sweep import MAX_BRAKE_GAIN
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.line import Line
 from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS, Train
@@ -276,8 +277,8 @@ class Scenario:
                 self.initial_speed_mps,
                 f"a speed >= 0 and <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)",
             )
-        if not (np.isfinite(self.brake_gain) and self.brake_gain >= 0):
-            raise ConfigError("brake.gain", self.brake_gain, "a factor >= 0")
+        if not (np.isfinite(self.brake_gain) and 0 <= self.brake_gain <= MAX_BRAKE_GAIN):
+            raise ConfigError("brake.gain", self.brake_gain, f"a factor in [0, {MAX_BRAKE_GAIN:g}]")
 
     @property
     def changeover_kmh(self) -> float:

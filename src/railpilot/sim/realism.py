@@ -25,6 +25,11 @@ import numpy as np
 from railpilot.errors import ConfigError
 from railpilot.sim import layout
 
+#: Largest peak adhesion coefficient [-]: wheel on rail gives 0.05-0.1 wet and 0.15-0.3
+#: dry in service, hardly 0.6 clean and dry in a laboratory; above 1 a wheel would grip
+#: better than steel on steel can. (1e308 passed and silently meant no limit, as 0 does.)
+MAX_ADHESION = 1.0
+
 
 @dataclass(frozen=True)
 class Realism:
@@ -67,6 +72,12 @@ class Realism:
             value = getattr(self, name)
             if not (np.isfinite(value) and value >= 0):
                 raise ConfigError(f"realism.{name}", value, "a finite number >= 0")
+        if self.adhesion > MAX_ADHESION:
+            raise ConfigError(
+                "realism.adhesion",
+                self.adhesion,
+                f"a coefficient in [0, {MAX_ADHESION:g}] (0 = unlimited)",
+            )
         if not (np.isfinite(self.wheel_scale_error) and abs(self.wheel_scale_error) < 0.2):
             raise ConfigError(
                 "realism.wheel_scale_error",

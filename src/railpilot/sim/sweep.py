@@ -3,16 +3,16 @@
 Parameters a sweep can vary (values in the scenario file's units)::
 
     train.mass_t              true mass [t] (the ATO's load weighing follows it)
-    train.davis_scale         factor on all three Davis coefficients [-]
+    train.davis_scale         factor on all three Davis coefficients [-], at most 10
     brake.delay_s             brake delay [s] (EP brake: rounded to whole steps)
     brake.lag_s               lag-delay brake's time constant tau [s]
     brake.air_lag_s           EP brake cylinder time constant [s]
     brake.electric_lag_s      EP electric brake time constant [s]
-    brake.gain                true brake effort / assumed (friction error) [-]
+    brake.gain                true brake effort / assumed (friction error) [-], at most 10
     disturbance.constant_kn   constant outside force [kN], + pushes the train on
     initial_speed_kmh         the train's speed at the start [km/h]
     realism.wheel_scale_error odometer circumference error [-]
-    realism.adhesion          peak wheel-rail adhesion [-]
+    realism.adhesion          peak wheel-rail adhesion [-], at most 1
 """
 
 from __future__ import annotations
@@ -23,6 +23,19 @@ from dataclasses import dataclass
 import numpy as np
 
 from railpilot.errors import ConfigError
+from railpilot.sim.realism import MAX_ADHESION
+
+#: Largest factor on the train's Davis coefficients [-]: they are measured for the train
+#: (the examples vary them by 20 %); ten times its resistance is another train, not an
+#: uncertainty. (A maximum of 1e308 passed: the resistance overflowed and every run
+#: stopped at once, hundreds of metres short.)
+MAX_DAVIS_SCALE = 10.0
+#: Largest true brake effort over what the brake manager assumes [-]: shoe friction
+#: varies by some tens of percent with speed, heat and wet (the examples: 5-10 %); ten
+#: times the service brake is far beyond what adhesion (at most ``MAX_ADHESION`` g) can
+#: pass to the rail. (A maximum of 1e308 passed and ran, to a stop hundreds of metres
+#: short.)
+MAX_BRAKE_GAIN = 10.0
 
 #: key -> lowest value allowed
 VARIABLE_PARAMETERS: dict[str, float] = {
@@ -37,6 +50,13 @@ VARIABLE_PARAMETERS: dict[str, float] = {
     "initial_speed_kmh": 0.0,
     "realism.wheel_scale_error": -0.2,
     "realism.adhesion": 0.0,
+}
+#: key -> highest value allowed, where the parameter's own check has no upper bound (the
+#: others are checked by what they build: the brake's ranges, the train's, ...)
+VARIABLE_MAXIMA: dict[str, float] = {
+    "train.davis_scale": MAX_DAVIS_SCALE,
+    "brake.gain": MAX_BRAKE_GAIN,
+    "realism.adhesion": MAX_ADHESION,
 }
 
 
@@ -74,6 +94,14 @@ class Distribution:
         lowest = VARIABLE_PARAMETERS[self.key]
         if self.low < lowest:
             raise ConfigError(f"{where}.min", self.low, f"a value >= {lowest:g}")
+        highest = VARIABLE_MAXIMA.get(self.key, np.inf)
+        if self.high > highest:
+            raise ConfigError(
+                f"{where}.max",
+                self.high,
+                f"a value <= {highest:g}"
+                + ("" if np.isfinite(self.high) else " (a normal distribution needs a max)"),
+            )
         if self.kind == "normal" and not (
             np.isfinite(self.std) and self.std > 0 and np.isfinite(self.mean)
         ):
