@@ -19,6 +19,8 @@ from railpilot.scenario.loader import read_toml, scenario_and_spec_from_mapping
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
 HUGE = 1e308
+#: a km post far beyond any line, still finite in metres
+FAR = 1e300
 #: the smallest float > 0 (subnormal): duration / TINY is inf
 TINY = 5e-324
 INT64_MAX = 2**63 - 1
@@ -116,6 +118,35 @@ CASES = [
         "montecarlo.vary.realism.adhesion.max",
     ),
     ("paper002_realistic", ("realism", "adhesion"), HUGE, "realism.adhesion"),
+    # km posts beyond the reference's range (loader.py MAX_KM_POST): they passed and ran
+    ("heavy_haul_run", ("line", "stations", 0, "stop_km"), HUGE, "line.stations[0].stop_km"),
+    ("paper002_realistic", ("realism", "balises_km", 1), FAR, "realism.balises_km[1]"),
+    (
+        "paper000_smarc_ep",
+        ("disturbance", "regions", 0, "start_km"),
+        -FAR,
+        "disturbance.regions[0].start_km",
+    ),
+    (
+        "paper000_smarc_ep",
+        ("disturbance", "regions", 0, "end_km"),
+        FAR,
+        "disturbance.regions[0].end_km",
+    ),
+    ("heavy_haul_run", ("line", "gradients", 0, "end_km"), FAR, "line.gradients[0].end_km"),
+    (
+        "paper002_realistic",
+        ("line", "gradients", 0, "start_km"),
+        -FAR,
+        "line.gradients[0].start_km",
+    ),
+    ("heavy_haul_run", ("line", "speed_limits", 0, "end_km"), FAR, "line.speed_limits[0].end_km"),
+    (
+        "heavy_haul_run",
+        ("line", "curves"),
+        [{"start_km": 1.0, "end_km": FAR, "radius_m": 800.0}],
+        "line.curves[0].end_km",
+    ),
 ]
 
 
@@ -124,7 +155,7 @@ CASES = [
     CASES,
     ids=[
         f"{c[0]}:{'.'.join(map(str, c[1]))}={c[2]:g}"
-        if not isinstance(c[2], dict)
+        if not isinstance(c[2], dict | list)
         else f"{c[0]}:{'.'.join(map(str, c[1]))}"
         for c in CASES
     ],
@@ -163,6 +194,15 @@ def test_an_absurd_value_is_an_error_naming_the_key_as_written(
         ("paper002_realistic", ("montecarlo", "vary", "realism.adhesion", "max"), 1.0),
         ("paper002_realistic", ("realism", "adhesion"), 1.0),
         ("paper002_realistic", ("realism", "adhesion"), 0.15),
+        # km posts at the ends of the range, and usual ones
+        ("heavy_haul_run", ("line", "stations", 0, "stop_km"), 10_000.0),
+        ("heavy_haul_run", ("line", "stations", 0, "stop_km"), 29.0),
+        ("paper002_realistic", ("realism", "balises_km", 0), -10_000.0),
+        ("paper002_realistic", ("realism", "balises_km", 0), 0.2),
+        ("paper000_smarc_ep", ("disturbance", "regions", 0, "end_km"), 10_000.0),
+        ("paper000_smarc_ep", ("disturbance", "regions", 0, "start_km"), -10_000.0),
+        ("heavy_haul_run", ("line", "gradients", 0, "end_km"), 10_000.0),
+        ("heavy_haul_run", ("line", "speed_limits", 0, "start_km"), -10_000.0),
     ],
 )
 def test_the_bounds_themselves_are_allowed(example: str, path: tuple[Any, ...], value: Any) -> None:

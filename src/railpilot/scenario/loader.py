@@ -284,6 +284,11 @@ _LIMITS = re.compile(r"^line\.speed_limits\[\d+\]\.limit$")
 MAX_KM_POST = 10_000.0
 
 
+def _km_post(t: _Table, name: str) -> float:
+    """The km post ``name`` of table ``t`` (required) in metres, within ``MAX_KM_POST``."""
+    return float(km_post_to_m(t.number(name, ge=-MAX_KM_POST, le=MAX_KM_POST)))
+
+
 def _file_error(exc: ConfigError) -> ScenarioError:
     """The constructor's error in the file's words: key as written, value in its unit."""
     if exc.field in _FILE_KEYS:
@@ -344,9 +349,7 @@ def _segments(
     out = []
     for item in t.tables(name):
         seg = Segment(
-            km_post_to_m(item.number("start_km")),
-            km_post_to_m(item.number("end_km")),
-            scale(item.number(value_key)),
+            _km_post(item, "start_km"), _km_post(item, "end_km"), scale(item.number(value_key))
         )
         item.done()
         out.append(seg)
@@ -359,9 +362,7 @@ def _line(t: _Table) -> Line:
     limits = _segments(t, "speed_limits", "limit_kmh", kmh_to_mps)
     stations = []
     for item in t.tables("stations"):
-        stations.append(
-            Station(item.string("name", "station"), km_post_to_m(item.number("stop_km")))
-        )
+        stations.append(Station(item.string("name", "station"), _km_post(item, "stop_km")))
         item.done()
     line = _build("line", lambda: Line(gradients, curves, limits, tuple(stations)))
     t.done()
@@ -471,11 +472,7 @@ def _disturbance(t: _Table, effective_mass_kg: float) -> Disturbance:
             if item.has("force_kn")
             else item.number("accel_mps2") * effective_mass_kg
         )
-        regions.append(
-            Region(
-                km_post_to_m(item.number("start_km")), km_post_to_m(item.number("end_km")), force
-            )
-        )
+        regions.append(Region(_km_post(item, "start_km"), _km_post(item, "end_km"), force))
         item.done()
     kw: dict[str, Any] = {"regions": tuple(regions)}
     t.put(kw, "constant_kn", "constant_n", kn_to_n)
@@ -496,6 +493,13 @@ def _realism(t: _Table) -> Realism:
         isinstance(b, bool) or not isinstance(b, int | float) for b in balises
     ):
         raise ScenarioError(t.key("balises_km"), balises, "a list of km posts")
+    for i, km in enumerate(balises):
+        if not -MAX_KM_POST <= km <= MAX_KM_POST:  # NaN too
+            raise ScenarioError(
+                f"{t.key('balises_km')}[{i}]",
+                km,
+                f"a km post in [{-MAX_KM_POST:g}, {MAX_KM_POST:g}]",
+            )
     kw: dict[str, Any] = {}
     if balises:
         kw["balises_m"] = tuple(km_post_to_m(float(b)) for b in balises)
