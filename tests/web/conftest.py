@@ -7,6 +7,7 @@ The browser tests use Playwright for Python with the system's chromium (Debian p
 
 from __future__ import annotations
 
+import contextlib
 import threading
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -70,7 +71,14 @@ class Served:
 @pytest.fixture
 def served(ground: FakeGround) -> Iterator[Served]:
     """The dashboard over ``ground`` on 127.0.0.1, an ephemeral port, in a thread."""
-    server = ThreadedServer(server_config(create_app(ground, token=TOKEN), port=0))
+    with serve(ground) as url:
+        yield Served(url, ground)
+
+
+@contextlib.contextmanager
+def serve(source: Any) -> Iterator[str]:
+    """The dashboard over ``source`` on 127.0.0.1, an ephemeral port, in a thread: its URL."""
+    server = ThreadedServer(server_config(create_app(source, token=TOKEN), port=0))
     thread = threading.Thread(target=server.run_in_thread, name="dashboard", daemon=True)
     thread.start()
     assert server.ready.wait(START_DEADLINE_S), "the dashboard did not start in time"
@@ -78,11 +86,30 @@ def served(ground: FakeGround) -> Iterator[Served]:
     host, port = server.servers[0].sockets[0].getsockname()[:2]
     assert host == "127.0.0.1"
     try:
-        yield Served(f"http://127.0.0.1:{port}/", ground)
+        yield f"http://127.0.0.1:{port}/"
     finally:
         server.should_exit = True
         thread.join(START_DEADLINE_S)
         assert not thread.is_alive(), "the dashboard did not stop"
+
+
+#: What the live ground's dashboard says until it has restored (web.ground_source).
+STARTING = "ground starting: restoring from the store"
+
+
+class StartingGround:
+    """The fake ground behind a source that cannot be shown until ``ready`` is set, as the
+    live ground's until it has restored from its store (``ServerSource.starting``)."""
+
+    def __init__(self, ground: FakeGround) -> None:
+        self.ground = ground
+        self.ready = False
+
+    def starting(self) -> str | None:
+        return None if self.ready else STARTING
+
+    def __getattr__(self, name: str) -> Any:
+        return getattr(self.ground, name)
 
 
 @pytest.fixture(scope="session")

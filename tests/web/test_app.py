@@ -16,7 +16,7 @@ from railpilot.link.ground import TsrState
 from railpilot.web.app import STATIC, create_app
 from railpilot.web.fake import FakeGround
 
-from .conftest import TOKEN, TSR_FORM
+from .conftest import STARTING, TOKEN, TSR_FORM, StartingGround
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 
@@ -209,3 +209,29 @@ def test_websocket_from_another_origin_is_refused(client: TestClient) -> None:
     ):
         pass
     assert refused.value.code == 1008
+
+
+# --- a source not ready to be shown (the live ground before its restore)
+
+
+def test_a_source_that_is_starting_is_503_and_closes_the_websocket(ground: FakeGround) -> None:
+    source = StartingGround(ground)
+    with TestClient(create_app(source, token=TOKEN, allowed_hosts=["testserver"])) as client:
+        assert client.get("/").status_code == 200  # the page, which then waits and retries
+        version = ground.version()
+        starting = {"errors": {"ground": STARTING}}
+        for response in (
+            client.get("/api/snapshot"),
+            client.post("/api/tsr", json=TSR_FORM, headers=AUTH),
+            client.post("/api/tsr/1/cancel", headers=AUTH),
+        ):
+            assert response.status_code == 503 and response.json() == starting
+            assert response.headers["retry-after"] == "1"
+        assert ground.version() == version  # no TSR was set
+        with client.websocket_connect("/ws") as ws, pytest.raises(WebSocketDisconnect) as closed:
+            ws.receive_json()
+        assert closed.value.code == 1013 and closed.value.reason == starting["errors"]["ground"]
+        source.ready = True
+        assert client.get("/api/snapshot").json()["version"] == ground.version()
+        with client.websocket_connect("/ws") as ws:
+            assert ws.receive_json()["version"] == ground.version()

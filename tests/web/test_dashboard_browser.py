@@ -7,14 +7,16 @@ is Playwright's ``expect`` polling up to a deadline: no sleeps, no timed asserti
 
 from __future__ import annotations
 
+import re
 import struct
 from pathlib import Path
 
 from playwright.sync_api import Locator, Page, expect
 
 from railpilot.link.ground import TsrState
+from railpilot.web.fake import FakeGround
 
-from .conftest import TOKEN, Served, needs_chromium
+from .conftest import STARTING, TOKEN, Served, StartingGround, needs_chromium, serve
 
 pytestmark = needs_chromium
 
@@ -132,3 +134,18 @@ def test_screenshot_of_the_line_with_at_least_20_trains(
     width, height = _png_size(path)
     assert width >= 1600 and height >= 1500
     assert path.stat().st_size > 100_000  # a drawn page, not a blank one
+
+
+def test_the_page_says_the_ground_is_starting_then_goes_live_by_itself(
+    ground: FakeGround, page: Page
+) -> None:
+    source = StartingGround(ground)
+    with serve(source) as url:
+        page.goto(url)
+        status = page.locator("#status")
+        expect(status).to_have_text(re.compile(f"^{STARTING}"), timeout=SHOWN_MS)
+        expect(status).to_have_class(re.compile("down"))
+        expect(page.locator("#trains tbody tr[data-train]")).to_have_count(0)
+        source.ready = True  # the page retries every second: no reload
+        expect(status).to_have_text("live", timeout=SHOWN_MS)
+        expect(page.locator("#trains tbody tr[data-train]")).to_have_count(24, timeout=SHOWN_MS)

@@ -7,21 +7,26 @@ on SIGTERM.
 
 from __future__ import annotations
 
+import asyncio
 import json
 import re
 import signal
 import socket
 import subprocess
 import sys
+import threading
 import time
 import urllib.error
 import urllib.request
 from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
 from typing import Any
 
 import pytest
 
 from railpilot.cli import main
+from railpilot.ground.store import open_store
+from railpilot.link import TsrSet
 
 BASE = ["ground", "serve", "--no-auth", "--port", "0", "--admin-port", "-1", "--db", ":memory:"]
 
@@ -119,3 +124,90 @@ def test_serve_prints_the_dashboard_and_its_token_once_and_stops_on_sigterm() ->
         if proc.poll() is None:
             proc.kill()
             proc.wait(timeout=5.0)
+
+
+#: Longest wait for the ground in a thread to get somewhere [s] (a deadline, not a sleep).
+DEADLINE_S = 30.0
+STARTING = "ground starting: restoring from the store"
+
+
+def test_the_dashboard_shows_nothing_before_the_ground_has_restored_its_store(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A dashboard asked while the ground restores answers 503 "ground starting", not an
+    empty line (no trains, no TSRs) that looks like the truth; once restored, it shows the
+    store's TSR. The restore is held until the test has asked (events, no sleeps)."""
+    import railpilot.commands.link as link_commands
+    import railpilot.web.ground_source as ground_source
+    from railpilot.net.dispatch_host import DispatchHost
+    from railpilot.net.server import GroundServer
+
+    db = tmp_path / "ground.db"
+    store = open_store(str(db))
+    now = time.time()
+    kept = TsrSet(7, 300_000.0, 330_000.0, 40 / 3.6, now, now + 3600.0)
+    store.record_tsr(kept, actor="dispatcher", reason="kept across restarts", at_s=now)
+    store.close()
+
+    holding, release, restored = threading.Event(), threading.Event(), threading.Event()
+    server_start, host_start = GroundServer.start, DispatchHost.start
+
+    async def held(self: GroundServer) -> Any:  # every port is bound; nothing restored yet
+        holding.set()
+        await asyncio.to_thread(release.wait, DEADLINE_S)  # the loop runs on meanwhile
+        return await server_start(self)
+
+    def noted(self: DispatchHost) -> None:
+        host_start(self)
+        restored.set()
+
+    ports: list[int] = []
+    serve = ground_source.serve_dashboard
+
+    async def serve_noting_the_port(*args: Any, **kwargs: Any) -> Any:
+        http, task = await serve(*args, **kwargs)
+        ports.append(http.port)
+        return http, task
+
+    stop: dict[str, Any] = {}
+
+    async def stop_event() -> asyncio.Event:  # the thread's ground stops when told
+        stop["loop"], stop["event"] = asyncio.get_running_loop(), asyncio.Event()
+        return stop["event"]
+
+    monkeypatch.setattr(GroundServer, "start", held)
+    monkeypatch.setattr(DispatchHost, "start", noted)
+    monkeypatch.setattr(ground_source, "serve_dashboard", serve_noting_the_port)
+    monkeypatch.setattr(link_commands, "_stop_on_signals", stop_event)
+    token = "test-dispatcher-token-0123456789"
+    argv = [
+        *BASE[:-1],  # the store is the file
+        str(db),
+        "--http-port",
+        "0",
+        "--dispatcher-token",
+        token,
+    ]
+    # in a thread, as above (Playwright may leave the main thread's loop marked running)
+    with ThreadPoolExecutor(1) as pool:
+        served = pool.submit(main, argv)
+        try:
+            assert holding.wait(DEADLINE_S), "the ground did not get to its restore"
+            url = f"http://127.0.0.1:{ports[0]}/"
+            starting = (503, {"errors": {"ground": STARTING}})
+            assert _request(url + "api/snapshot") == starting
+            form = {"start_km": "10", "end_km": "12", "limit_kmh": "40", "valid_until_min": "60"}
+            assert _request(url + "api/tsr", {**form, "reason": "x"}, token) == starting
+            assert "dashboard:" not in capsys.readouterr().err  # not announced yet
+
+            release.set()
+            assert restored.wait(DEADLINE_S), "the ground did not restore"
+            status, snapshot = _request(url + "api/snapshot")
+            assert status == 200
+            assert [t["session"] for t in snapshot["tsrs"]] == [7]
+            assert f"dashboard: {url}" in capsys.readouterr().err
+        finally:
+            release.set()
+            if "event" in stop:
+                stop["loop"].call_soon_threadsafe(stop["event"].set)
+            assert served.result(timeout=DEADLINE_S) == 0

@@ -541,9 +541,10 @@ def _ground_serve(args: argparse.Namespace) -> int:
         try:
             # Every port is bound before the link's server touches the store (it restores
             # from it, and notes that in its audit log): a busy port or an address that is
-            # not this host's stops everything first.
+            # not this host's stops everything first. The dashboard answers 503 ("ground
+            # starting") until the dispatch core has restored (ServerSource.starting).
             if dashboard is not None:
-                http = await _start_dashboard(dispatch, args, *dashboard)
+                http = await _start_dashboard(dispatch, args, dashboard[0])
             if args.admin_port != -1:
                 admin = AdminServer(dispatch, port=args.admin_port)
                 try:
@@ -559,6 +560,8 @@ def _ground_serve(args: argparse.Namespace) -> int:
             dispatch.start()
             if admin is not None:
                 await admin.serve()
+            if http is not None and dashboard is not None:  # it shows the ground's state now
+                _print_dashboard(args, http[0].port, *dashboard)
             started = True
             # Everything alive now lives as long as the process: out of the collector's
             # reach, so that its full collections stop walking it (railpilot/heap.py).
@@ -650,26 +653,26 @@ def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
 
 
 async def _start_dashboard(
-    dispatch: Any, args: argparse.Namespace, token: str, generated: bool
+    dispatch: Any, args: argparse.Namespace, token: str
 ) -> tuple[Any, asyncio.Task[None]]:
-    """Serve the dashboard over the ground's dispatch in this loop; print its address (and
-    the token when it was made up here: it is printed once, never logged)."""
+    """Serve the dashboard over the ground's dispatch in this loop (it answers 503 until
+    the dispatch core has restored from the store)."""
     from railpilot.web.ground_source import ServerSource, serve_dashboard
 
     source = ServerSource(dispatch)
     try:
-        http, task = await serve_dashboard(
-            source, token=token, host=args.http_host, port=args.http_port
-        )
+        return await serve_dashboard(source, token=token, host=args.http_host, port=args.http_port)
     except ConfigError as exc:
         raise ConfigError("--http-port", args.http_port, exc.allowed) from None
+
+
+def _print_dashboard(args: argparse.Namespace, port: int, token: str, generated: bool) -> None:
+    """The dashboard's address, once it shows the ground (and the token when it was made
+    up here: it is printed once, never logged)."""
     shown = token if generated else "(the one given with --dispatcher-token)"
     print(
-        f"dashboard: http://{args.http_host}:{http.port}/  token: {shown}",
-        file=sys.stderr,
-        flush=True,
+        f"dashboard: http://{args.http_host}:{port}/  token: {shown}", file=sys.stderr, flush=True
     )
-    return http, task
 
 
 def _ground_admin(args: argparse.Namespace) -> int:

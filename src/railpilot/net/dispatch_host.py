@@ -90,6 +90,10 @@ class DispatchHost:
         self._flush_scheduled = False
         self._ticker: asyncio.TimerHandle | None = None
         self._started = False
+        #: True once :meth:`start` has restored the core from the store (and stays so):
+        #: before, the core holds none of the ground's TSRs, restrictions or trains, and
+        #: what it would show (the dashboard) is not the ground's state
+        self.restored = False
         self._tasks: set[asyncio.Task[dict[int, str]]] = set()
         #: computes each tick's block occupancy, one at a time (:meth:`_on_tick`)
         self._worker: ThreadPoolExecutor | None = None
@@ -115,6 +119,7 @@ class DispatchHost:
                 tsrs=len(self.dispatch.tsrs.tsrs()),
                 restrictions=len(restrictions),
             )
+        self.restored = True
         self._schedule_tick()
 
     def stop(self) -> None:

@@ -32,6 +32,12 @@ Each push is recorded in ``app.state.pushes`` (the last :data:`PUSH_RECORDS`, as
 tool can see what the page costs the ground's event loop (``railpilot link loadtest
 --dashboard``).
 
+A source may not be ready to be shown yet: the live ground's, until it has restored from
+its store (web/ground_source.py). While its optional ``starting()`` gives a reason, the
+snapshot and the two ``POST`` routes answer 503 with ``{"errors": {"ground": reason}}`` and
+``Retry-After``, and the WebSocket closes with code 1013 (try again later) and the reason,
+which the page shows while it retries; the page and its files are served all along.
+
 The two ``POST`` routes need ``Authorization: Bearer <token>`` (else 401); a rejected form
 is 422 with ``{"errors": {field: message}}``. Reading needs no token: the page binds to
 127.0.0.1 by default (:data:`DEFAULT_HOST`), answers only to the host names in
@@ -206,6 +212,19 @@ def create_app(
         except (UnicodeDecodeError, json.JSONDecodeError):
             return None, _json({"errors": {"form": "the request body is not JSON"}}, 400)
 
+    source_starting = getattr(source, "starting", None)
+
+    def not_ready() -> str | None:
+        """Why the source is not ready to be shown (module docstring), or None."""
+        return None if source_starting is None else source_starting()
+
+    def unavailable() -> Response | None:
+        """503 while the source is not ready to be shown, else None."""
+        reason = not_ready()
+        if reason is None:
+            return None
+        return _json({"errors": {"ground": reason}}, 503, {"Retry-After": "1"})
+
     def answer(result: dict[str, Any]) -> Response:
         if "errors" in result:
             return _json({"errors": result["errors"]}, 422)
@@ -215,11 +234,15 @@ def create_app(
         return FileResponse(STATIC / "index.html", headers={"Cache-Control": "no-cache"})
 
     async def snapshot(request: Request) -> Response:
+        if (refused := unavailable()) is not None:
+            return refused
         return _json(source.snapshot(source.now_s()))
 
     async def set_tsr(request: Request) -> Response:
         if not authorized(request):
             return unauthorized()
+        if (refused := unavailable()) is not None:
+            return refused
         fields, error = await json_body(request)
         if error is not None:
             return error
@@ -230,6 +253,8 @@ def create_app(
     async def cancel_tsr(request: Request) -> Response:
         if not authorized(request):
             return unauthorized()
+        if (refused := unavailable()) is not None:
+            return refused
         raw = request.path_params["session"]
         if not raw.isdigit() or not 1 <= int(raw) <= 0xFFFF_FFFF:
             return _json({"errors": {"session": f"{raw!r} is not a TSR session number"}}, 422)
@@ -241,6 +266,9 @@ def create_app(
             await websocket.close(code=1008)  # policy violation: another site's page
             return
         await websocket.accept()
+        if (reason := not_ready()) is not None:  # 1013: try again later (the page does)
+            await websocket.close(code=1013, reason=reason)
+            return
         closed = asyncio.Event()
 
         async def read() -> None:

@@ -57,6 +57,8 @@ SLICE = 100
 #: The time-distance graph: how far back and ahead it shows [s] (as the fake).
 GRAPH_PAST_S = 3600.0
 GRAPH_AHEAD_S = 1200.0
+#: What the dashboard answers before the ground has restored (:meth:`ServerSource.starting`).
+STARTING = "ground starting: restoring from the store"
 #: The delivery states in which a train enforces a TSR (it confirmed it, no cancel yet).
 ENFORCED = (TsrState.ACTIVE, TsrState.PENDING_CANCEL)
 
@@ -92,6 +94,12 @@ class ServerSource:
         }
 
     # ------------------------------------------------------------------ DashboardSource
+
+    def starting(self) -> str | None:
+        """Why the page cannot be answered yet, or None: until the dispatch core has
+        restored from the store (``DispatchHost.start``), it holds none of the ground's
+        TSRs, restrictions or trains, and an empty line would look like the truth."""
+        return None if self.host.restored else STARTING
 
     def now_s(self) -> float:
         return float(self._clock())

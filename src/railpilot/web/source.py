@@ -61,6 +61,10 @@ class DashboardSource(Protocol):
 
     Every method is called from the web server's event loop and must return quickly; a
     source updated from another thread guards its state itself (FakeGround holds a lock).
+
+    Optional: ``starting() -> str | None``, why the source cannot be shown yet (the live
+    ground until it has restored from its store), or None; while it gives a reason the app
+    answers 503 and closes the WebSocket (app.py). A source without it is always ready.
     """
 
     def now_s(self) -> float:

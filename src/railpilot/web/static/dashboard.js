@@ -597,8 +597,9 @@ function connect() {
   const ws = new WebSocket(`${scheme}://${location.host}/ws`);
   ws.onopen = () => setStatus(true, "live");
   ws.onmessage = (event) => receive(JSON.parse(event.data));
-  ws.onclose = () => {
-    setStatus(false, "disconnected: retrying");
+  ws.onclose = (event) => {
+    // a reason is the server's (1013: the ground is starting, restoring from its store)
+    setStatus(false, `${event.reason || "disconnected"}: retrying`);
     setTimeout(connect, 1000);
   };
 }
@@ -610,6 +611,14 @@ setInterval(() => {
 }, 1000);
 
 showToken();
-fetch("/api/snapshot").then((r) => r.json()).then((snap) => { if (!latest) receive(snap); })
+fetch("/api/snapshot")
+  .then(async (r) => {
+    const body = await r.json();
+    if (r.ok) {
+      if (!latest) receive(body);
+    } else { // 503 while the ground restores from its store: the WebSocket retries
+      setStatus(false, Object.values(body.errors || {}).join("; ") || `answer ${r.status}`);
+    }
+  })
   .catch(() => setStatus(false, "server not reachable"));
 connect();
