@@ -8,6 +8,7 @@ as the file writes it.
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
@@ -27,11 +28,16 @@ INT64_MAX = 2**63 - 1
 
 
 def _load(example: str, path: tuple[Any, ...], value: Any) -> None:
+    _load_changed(example, {path: value})
+
+
+def _load_changed(example: str, changes: dict[tuple[Any, ...], Any]) -> None:
     data = read_toml(EXAMPLES / f"{example}.toml")
-    table = data
-    for key in path[:-1]:
-        table = table[key]
-    table[path[-1]] = value
+    for path, value in changes.items():
+        table = data
+        for key in path[:-1]:
+            table = table[key]
+        table[path[-1]] = value
     if data.get("kind") == "eddy-brake":
         EddyScenario.from_mapping(data, base_dir=EXAMPLES)
     else:
@@ -207,3 +213,59 @@ def test_an_absurd_value_is_an_error_naming_the_key_as_written(
 )
 def test_the_bounds_themselves_are_allowed(example: str, path: tuple[Any, ...], value: Any) -> None:
     _load(example, path, value)
+
+
+#: errors that named the constructor's field in metres (or a key no file has) where the
+#: file writes a km post: (example, changes, the key as written, the value as written)
+NAMED_AS_WRITTEN = [
+    # a drive's stop before its start: reference.stop_m = -5000.0, "> reference.start_m"
+    ("heavy_haul_run", {("reference", "stop_km"): -5.0}, "reference.stop_km", -5.0),
+    ("heavy_haul_run", {("reference", "stop_km"): 0.0}, "reference.stop_km", 0.0),
+    # a drive longer than its profile tabulates: reference.dx_m = 1.0, a key no file has
+    (
+        "heavy_haul_run",
+        {("reference", "start_km"): -9000.0, ("reference", "stop_km"): 9000.0},
+        "reference.stop_km",
+        9000.0,
+    ),
+    # a start speed above what the profile allows: "... m/s (... at reference.start_m)"
+    (
+        "heavy_haul_run",
+        {("reference", "start_km"): 28.0, ("reference", "v0_kmh"): 79.0},
+        "reference.v0_kmh",
+        79.0,
+    ),
+    # a train lighter than its locomotive: brake.train.mass_kg = 100000.0, in kg
+    ("heavy_haul_run", {("train", "mass_t"): 100.0}, "train.mass_t", 100.0),
+    # a brake's delay line too long for the step: brake.sim.dt_s, a key no file has
+    ("heavy_haul_run", {("sim", "duration_s"): 40.0, ("sim", "dt_s"): 4e-6}, "sim.dt_s", 4e-6),
+]
+
+
+@pytest.mark.parametrize(
+    ("example", "changes", "field", "value"),
+    NAMED_AS_WRITTEN,
+    ids=[f"{c[0]}:{c[2]}={c[3]:g}" for c in NAMED_AS_WRITTEN],
+)
+def test_an_error_names_the_key_and_value_as_the_file_writes_them(
+    example: str, changes: dict[tuple[Any, ...], Any], field: str, value: float
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        _load_changed(example, changes)
+    assert (info.value.field, info.value.value) == (field, value)
+    # what is allowed names the file's keys and units, not the constructor's metres
+    assert not re.search(r"\w_m\b", info.value.allowed), info.value.allowed
+    if field.endswith("_kmh"):
+        assert "km/h" in info.value.allowed
+
+
+@pytest.mark.parametrize(
+    "changes",
+    [
+        # the longest drive, and a usual one
+        {("reference", "start_km"): -5000.0, ("reference", "stop_km"): 5000.0},
+        {("reference", "start_km"): 2.0, ("reference", "stop_km"): 29.5},
+    ],
+)
+def test_drives_within_the_profile_s_reach_load(changes: dict[tuple[Any, ...], Any]) -> None:
+    _load_changed("heavy_haul_run", changes)

@@ -194,7 +194,7 @@ class LocomotiveDrive:
                 "train.mass_kg",
                 train.mass_kg,
                 f"at least the locomotive's mass {self.locomotive.mass_kg:g} kg "
-                "(the train's mass includes it)",
+                f"({self.locomotive.mass_kg / 1000.0:g} t; the train's mass includes it)",
             )
         loco = self.locomotive
         own = np.zeros(P_AIR0)

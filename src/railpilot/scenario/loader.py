@@ -78,10 +78,10 @@ from railpilot.scenario.model import (
 )
 from railpilot.scenario.montecarlo import Distribution, MonteCarloSpec
 from railpilot.sim.disturbance import Disturbance, Region
-from railpilot.sim.drive_profile import DriveProfile
+from railpilot.sim.drive_profile import DEFAULT_DX_M, MAX_GRID_POINTS, DriveProfile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve
-from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, mps_to_kmh, tonne_to_kg
+from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, m_to_km_post, mps_to_kmh, tonne_to_kg
 from railpilot.vehicle.line import Line, Segment, Station
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
 
@@ -314,9 +314,26 @@ def _build(path: str, make: Callable[[], T]) -> T:
     except ScenarioError:
         raise
     except ConfigError as exc:
-        if not exc.field.startswith(path.split(".")[0]):
+        # a field of the constructor's own, unless it names a table of the file (a brake
+        # packed for the step names sim.dt_s, not brake.sim.dt_s)
+        if exc.field.split(".")[0] not in (path.split(".")[0], *_TABLES):
             exc = ConfigError(f"{path}.{exc.field}", exc.value, exc.allowed)
         raise _file_error(exc) from exc
+
+
+#: the file's top-level tables
+_TABLES = (
+    "train",
+    "line",
+    "brake",
+    "reference",
+    "disturbance",
+    "ato",
+    "controller",
+    "sim",
+    "realism",
+    "montecarlo",
+)
 
 
 def _train(t: _Table) -> Train:
@@ -430,6 +447,7 @@ def _reference(t: _Table, line: Line, train: Train) -> BrakingCurve | DriveProfi
         t.put(kw, "stop_km", "stop_m", km_post_to_m, ge=-MAX_KM_POST, le=MAX_KM_POST)
         if "stop_m" not in kw:
             t.number("stop_km")  # required for this shape: raises naming the key
+        _check_drive_span(t, kw)
         t.put(kw, "cruise_kmh", "cruise_mps", kmh_to_mps)
         t.put(kw, "accel_mps2", "accel_mps2")
         t.put(kw, "decel_mps2", "decel_mps2")
@@ -456,6 +474,30 @@ def _reference(t: _Table, line: Line, train: Train) -> BrakingCurve | DriveProfi
     curve = _build("reference", spec.build)
     t.done()
     return curve
+
+
+def _check_drive_span(t: _Table, kw: dict[str, Any]) -> None:
+    """A drive's stop after its start and within what its profile tabulates, named in km
+    as the file writes them (the profile names its metres: reference.stop_m, dx_m)."""
+    start_m = kw.get("start_m", DriveSpec.start_m)
+    start_km = t.number("start_km", m_to_km_post(start_m))
+    stop_km = t.number("stop_km")
+    if not kw["stop_m"] > start_m:
+        raise ScenarioError(
+            t.key("stop_km"),
+            stop_km,
+            f"a km post after reference.start_km = {start_km:g} (a drive runs towards "
+            "increasing km)",
+        )
+    if (kw["stop_m"] - start_m) / DEFAULT_DX_M > MAX_GRID_POINTS:
+        longest_km = m_to_km_post(MAX_GRID_POINTS * DEFAULT_DX_M)
+        raise ScenarioError(
+            t.key("stop_km"),
+            stop_km,
+            f"a km post at most {longest_km:g} km after reference.start_km = {start_km:g} "
+            f"(a drive's profile has at most {MAX_GRID_POINTS:,} knots, "
+            f"{DEFAULT_DX_M:g} m apart)",
+        )
 
 
 def _disturbance(t: _Table, effective_mass_kg: float) -> Disturbance:

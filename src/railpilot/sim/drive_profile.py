@@ -53,12 +53,15 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from railpilot.errors import ConfigError
+from railpilot.units import mps_to_kmh
 from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
 
 #: Knots closer than this [m] are merged.
 MIN_CELL_M = 1e-6
 #: Most knots a profile may have (guards against a tiny ``dx_m`` on a long run).
 MAX_GRID_POINTS = 10_000_000
+#: Default largest spacing of the knots [m] (a scenario file's drive uses it).
+DEFAULT_DX_M = 1.0
 
 
 @dataclass(frozen=True)
@@ -96,7 +99,7 @@ class DriveProfile:
     v_start_mps: float = 0.0
     min_speed_mps: float = 0.5
     train_length_m: float = 0.0
-    dx_m: float = 1.0
+    dx_m: float = DEFAULT_DX_M
     # the knots: times [s], positions [m], speeds [m/s]; per cell: acceleration [m/s^2]
     _t: np.ndarray = field(init=False, repr=False, compare=False)
     _x: np.ndarray = field(init=False, repr=False, compare=False)
@@ -274,8 +277,8 @@ class DriveProfile:
             raise ConfigError(
                 "reference.v_start_mps",
                 v_start,
-                f"a speed <= {allowed:.6g} m/s (what the cruise speed, the limits and the "
-                "stop allow at reference.start_m)",
+                f"a speed <= {allowed:.6g} m/s ({mps_to_kmh(allowed):.6g} km/h): what the cruise "
+                "speed, the limits and the stop allow at the start",
             )
 
 
@@ -385,7 +388,7 @@ def drive_profile(
     limits: Iterable[Sequence[float]] = (),
     v_start_mps: float = 0.0,
     min_speed_mps: float = 0.5,
-    dx_m: float = 1.0,
+    dx_m: float = DEFAULT_DX_M,
     train_length_m: float = 0.0,
 ) -> DriveProfile:
     """The minimum-time driving reference of a run (see :class:`DriveProfile`).
