@@ -4,6 +4,7 @@ server that did not start)."""
 
 from __future__ import annotations
 
+import errno
 import os
 import socket
 from collections.abc import Iterator
@@ -243,14 +244,22 @@ def test_an_inject_that_is_no_readable_file_and_no_hex_is_refused(
     problem: str,
     tmp_path: Path,
     capsys: pytest.CaptureFixture[str],
+    monkeypatch: pytest.MonkeyPatch,
     never_run: None,
 ) -> None:
-    if name == "unreadable.bin" and os.geteuid() == 0:
-        pytest.skip("root may read any file")
     (tmp_path / "a_dir").mkdir()
     (tmp_path / "empty.bin").write_bytes(b"")
-    (tmp_path / "unreadable.bin").write_bytes(b"\x7e\x01")
-    (tmp_path / "unreadable.bin").chmod(0)
+    unreadable = tmp_path / "unreadable.bin"
+    unreadable.write_bytes(b"\x7e\x01")
+    unreadable.chmod(0)
+    read_bytes = Path.read_bytes
+
+    def as_for_anyone_but_root(path: Path) -> bytes:  # root may read it after all
+        if path == unreadable:
+            raise PermissionError(errno.EACCES, os.strerror(errno.EACCES), str(path))
+        return read_bytes(path)
+
+    monkeypatch.setattr(Path, "read_bytes", as_for_anyone_but_root)
     value = str(tmp_path / name) if name else ""
     assert main([*PROXY, "--seconds", "5", "--inject", value]) == 2
     error = _error(capsys)
