@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from railpilot.errors import ConfigError
+from railpilot.jit_identity import same_in_every_process
 
 from .base import BrakeModel, BrakeStep
 from .brake_pipe import BrakePipeBrake, brake_pipe_ato_step
@@ -28,6 +29,11 @@ class BrakeEntry:
     name: str
     cls: type
     step: BrakeStep
+
+    def __post_init__(self) -> None:
+        # the loop compiled for this step is found again in Numba's cache by the next
+        # process (railpilot/jit_identity.py)
+        same_in_every_process(self.step)
 
 
 BRAKES: dict[str, BrakeEntry] = {

@@ -17,6 +17,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.jit_identity import same_in_every_process
 
 from .base import Controller
 from .pid import TrackingPID, pid_ato_step
@@ -44,6 +45,11 @@ class ControllerEntry:
     cls: type[Controller]
     step: Any  # a Numba dispatcher with the signature of control/base.py
     tuning: Tuning
+
+    def __post_init__(self) -> None:
+        # the loop compiled for this step is found again in Numba's cache by the next
+        # process (railpilot/jit_identity.py)
+        same_in_every_process(self.step)
 
 
 CONTROLLERS: dict[str, ControllerEntry] = {

@@ -33,10 +33,12 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import njit, objmode
+from numba import cfunc, njit, objmode, types
 from numba.core.dispatcher import Dispatcher
+from numba.core.errors import NumbaError
 
 from railpilot.errors import ConfigError
+from railpilot.jit_identity import same_in_every_process
 
 from .base import Controller
 from .registry import CONTROLLERS, builtin_entry_of, controller_entry
@@ -131,6 +133,53 @@ def python_step(
     return u + resist_mps2
 
 
+# the loop compiled for the Python path is found again in Numba's cache by the next
+# process (railpilot/jit_identity.py)
+same_in_every_process(python_step)
+
+
+# --- a user's compiled step ------------------------------------------------------------
+
+_ARRAY = types.float64[::1]
+#: control/base.py's step as a Numba type: ``(params, state, 9 floats) -> u``
+STEP_SIGNATURE = types.float64(_ARRAY, _ARRAY, *(types.float64,) * 9)
+
+
+def step_pointer(owner: str, step: Dispatcher) -> Any:
+    """A user's ``step`` behind a C function pointer of :data:`STEP_SIGNATURE`.
+
+    The compiled loop takes it as a first-class function, typed by its signature and not
+    by the function itself, so the loop compiled for it is the same for every user's
+    step and comes from Numba's on-disk cache. A loop specialised on the user's function
+    could not be cached (the cache cannot find the user's module again in another
+    process): it was compiled in every process, about a minute on a 2-core machine. The
+    call through the pointer costs nanoseconds a control update.
+
+    An exception cannot leave a C callback, so one raised by the step becomes NaN, which
+    the loop stops the run at and the simulator reports, naming ``owner``
+    (sim/run.py ``check_commands``).
+    """
+
+    def call(  # type: ignore[no-untyped-def]
+        params, state, ref_x, ref_v, ref_a, x, v, resist_mps2, u_min, u_max, dt
+    ):
+        try:
+            return step(params, state, ref_x, ref_v, ref_a, x, v, resist_mps2, u_min, u_max, dt)
+        except Exception:  # no exception crosses a C callback: NaN says it
+            return np.nan
+
+    try:
+        return cfunc(STEP_SIGNATURE)(call)
+    except NumbaError as exc:  # a step Numba cannot compile for control/base.py's signature
+        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        raise ConfigError(
+            owner,
+            getattr(step, "__name__", step),
+            "a Numba function step(params, state, ref_x, ref_v, ref_a, x, v, resist_mps2, "
+            f"u_min, u_max, dt) -> float (control/base.py); Numba says: {first}",
+        ) from None
+
+
 # --- binding ---------------------------------------------------------------------------
 
 
@@ -144,9 +193,11 @@ class Binding:
     state: np.ndarray
     #: the Python object the step calls (the Python path), None for compiled steps
     python: Any = None
-    #: a registered step (or the Python path's): the compiled loop specialised for it
-    #: may go to Numba's on-disk cache; a user's own step is compiled in each process
-    cacheable: bool = True
+    #: a user's compiled step, as its errors name it (``"CompiledTracker.step"``): the
+    #: simulator stops a run whose step gave no number and names it (sim/run.py
+    #: ``check_commands``); None for the built-ins and the Python path (which checks
+    #: every answer of ``update`` itself)
+    user_step: str | None = None
 
     @property
     def parallel_safe(self) -> bool:
@@ -179,10 +230,12 @@ def bind(controller: Any) -> Binding:
         return Binding(entry.name, entry.step, controller.params.copy(), controller.state.copy())
     step = getattr(type(controller), "step", None)
     if isinstance(step, Dispatcher):
+        owner = f"{type(controller).__name__}.step"
         controller.reset()
         params = np.asarray(controller.params, dtype=float)
         state = np.asarray(controller.state, dtype=float)
-        return Binding(name, step, params.copy(), state.copy(), cacheable=False)
+        pointer = step_pointer(owner, step)
+        return Binding(name, pointer, params.copy(), state.copy(), user_step=owner)
     if callable(getattr(controller, "update", None)) and callable(
         getattr(controller, "reset", None)
     ):

@@ -42,7 +42,7 @@ from railpilot.sim.inputs import (
     run_inputs,
 )
 from railpilot.sim.layout import LineIn, ReferenceIn, RunInputs, batch_row, stack_runs
-from railpilot.sim.run import metrics_dict, resolve_controller
+from railpilot.sim.run import check_commands, metrics_dict, resolve_controller
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.units import kmh_to_mps, tonne_to_kg
 
@@ -197,32 +197,6 @@ def run_batch_kernel(
 engine.keep_going_if_the_cache_cannot_save(run_batch_kernel)
 
 
-@njit(nogil=True, cache=False)
-def run_batch_kernel_uncached(
-    batch: RunInputs,
-    ctrl_step: Any,
-    brake_step: Any,
-    metrics: np.ndarray,
-    start: int,
-    stop: int,
-) -> None:
-    """:func:`run_batch_kernel` for a user's own step: neither it nor the loop it calls is
-    written to Numba's on-disk cache (which could not find the user's module again)."""
-    empty = np.zeros((0, engine.N_CHANNELS))
-    for i in range(start, stop):
-        row = batch_row(batch, i)
-        engine.run_kernel_uncached(
-            row,
-            ctrl_step,
-            brake_step,
-            empty,
-            1,
-            metrics[i],
-            engine.fresh_state(row),
-            row.sim.n_steps,
-        )
-
-
 def run_batch(
     batch: RunInputs, binding: Binding, brake_step: Any, threads: int | None = None
 ) -> np.ndarray:
@@ -248,19 +222,20 @@ def run_batch(
         return metrics
     n = max(1, min(threads or os.cpu_count() or 1, runs))
     bounds = np.linspace(0, runs, n + 1).astype(int)
-    kernel = run_batch_kernel if binding.cacheable else run_batch_kernel_uncached
     if n == 1:
-        kernel(batch, binding.step, brake_step, metrics, 0, runs)
+        run_batch_kernel(batch, binding.step, brake_step, metrics, 0, runs)
+        check_commands(binding, metrics)
         return metrics
     # compile (or load) once before the threads race to do it
-    kernel(batch, binding.step, brake_step, metrics, 0, 0)
+    run_batch_kernel(batch, binding.step, brake_step, metrics, 0, 0)
     with ThreadPoolExecutor(max_workers=n) as pool:
         jobs = [
-            pool.submit(kernel, batch, binding.step, brake_step, metrics, int(a), int(b))
+            pool.submit(run_batch_kernel, batch, binding.step, brake_step, metrics, int(a), int(b))
             for a, b in itertools.pairwise(bounds)
         ]
         for job in jobs:
             job.result()
+    check_commands(binding, metrics)
     return metrics
 
 

@@ -132,8 +132,9 @@ davis_specific_resistance = njit(inline="always")(resistance._davis_specific_res
     M_MAX_SPEED,
     M_STEPS,
     M_E_TRAC_AIR,
-) = range(19)
-N_METRICS = 19
+    M_NO_COMMAND_T,
+) = range(20)
+N_METRICS = 20
 N_CHANNELS = 12
 
 G = G_MPS2  # the one value of g (units.py)
@@ -271,6 +272,7 @@ def run_kernel(
     # only a train that has moved can come to its final stop
     has_moved = c[C_HAS_MOVED] > 0.5
     slide_t = c[C_SLIDE_T]
+    no_command_t = np.nan
     n_rec = record.shape[0]
     ctrl_dt = dt * control_every
     next_balise = int(c[C_NEXT_BALISE])
@@ -380,6 +382,11 @@ def run_kernel(
                 u_hi,
                 ctrl_dt,
             )
+            if u != u:
+                # the controller gave no number (a user's step that returned NaN or
+                # raised, control/user.py): the run stops here and the caller names it
+                no_command_t = t
+                break
             u = min(max(u, u_min), u_hi)
             if notches > 0.0:
                 # brake commands in notches: the nearest one to the wanted command
@@ -545,6 +552,7 @@ def run_kernel(
     metrics[M_MAX_SPEED] = v_max
     metrics[M_STEPS] = steps_run
     metrics[M_E_TRAC_AIR] = e_trac_air
+    metrics[M_NO_COMMAND_T] = no_command_t
 
 
 def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:
@@ -568,13 +576,3 @@ def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:
 
 
 keep_going_if_the_cache_cannot_save(run_kernel)
-
-#: The same loop, never written to Numba's on-disk cache: for a user's own compiled step,
-#: whose module the cache could not find again in another process (it is compiled once
-#: per process instead).
-run_kernel_uncached = njit(cache=False)(run_kernel.py_func)
-
-
-def kernel_for(cacheable: bool) -> Any:
-    """:func:`run_kernel`, or its uncached twin for a user's own step."""
-    return run_kernel if cacheable else run_kernel_uncached

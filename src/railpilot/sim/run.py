@@ -163,9 +163,8 @@ def run_once(
     n_rec = (n + record_every - 1) // record_every if record_every > 0 else 0
     record = np.zeros((n_rec, engine.N_CHANNELS))
     metrics = np.zeros(engine.N_METRICS)
-    kernel = engine.kernel_for(binding.cacheable)
     with binding:
-        kernel(
+        engine.run_kernel(
             inp,
             binding.step,
             brake_step,
@@ -175,7 +174,25 @@ def run_once(
             engine.fresh_state(inp),
             n,
         )
+    check_commands(binding, metrics)
     return metrics, record
+
+
+def check_commands(binding: Binding, metrics: np.ndarray) -> None:
+    """A ConfigError naming a user's compiled step if it gave no number in a run
+    (``metrics``: one run's, or a batch's rows): the loop stopped that run there."""
+    if binding.user_step is None:
+        return
+    stopped_at = np.asarray(metrics)[..., engine.M_NO_COMMAND_T]
+    failed = ~np.isnan(stopped_at)
+    if failed.any():
+        t = float(np.ravel(stopped_at)[np.argmax(np.ravel(failed))])
+        raise ConfigError(
+            binding.user_step,
+            f"no number at t = {t:g} s (NaN, or it raised an exception)",
+            "a step that returns a number: the commanded acceleration [m/s^2] (call it "
+            "from Python with the same arguments to see an exception it raises)",
+        )
 
 
 #: kernel metric index -> public name (railpilot.sim.result.METRICS defines them)

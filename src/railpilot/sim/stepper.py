@@ -33,7 +33,7 @@ from railpilot.sim.layout import (
     C_X,
 )
 from railpilot.sim.result import SimResult
-from railpilot.sim.run import resolve_controller, sim_result
+from railpilot.sim.run import check_commands, resolve_controller, sim_result
 
 if TYPE_CHECKING:
     from railpilot.scenario.model import Scenario
@@ -57,7 +57,7 @@ class Stepper:
         self._record_every = max(scenario.sim.record_every, 1)
         self._record = np.zeros((-(-n // self._record_every), engine.N_CHANNELS))
         self._metrics = np.zeros(engine.N_METRICS)
-        self._kernel = engine.kernel_for(self._binding.cacheable)
+        self._kernel = engine.run_kernel
         self._compiled: Any = None  # the kernel's compiled entry for these arguments
         # read once: a line run asks a stepper to advance several times a second per train,
         # and most asks fall within the step already run
@@ -142,6 +142,8 @@ class Stepper:
                 self._compiled = _compiled_entry(self._kernel, args)
             else:
                 self._compiled(*args)
+        if self._binding.user_step is not None:
+            check_commands(self._binding, self._metrics)
 
     def run_to_end(self) -> None:
         self.advance_to(self.n_steps * self._dt)

@@ -1,0 +1,62 @@
+"""The compiled loop comes from Numba's on-disk cache in a new process.
+
+The loop is specialised for the controller's and the brake's steps; before
+railpilot/jit_identity.py (built-in steps) and control/user.py ``step_pointer`` (a
+user's step), every process compiled it again: several seconds for each pair, in every
+train process of a live line run, every Dask worker and every command. Each case runs
+twice in fresh processes: the first fills the cache if it has to, the second must find
+the loop there and compile nothing.
+"""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+PAPER002 = ROOT / "examples" / "paper002_qsmc_stop.toml"
+EXAMPLE = ROOT / "examples" / "user_controller.py"
+
+CHILD = """
+import json, sys
+from dataclasses import replace
+from railpilot.control.user import load_controller
+from railpilot.scenario import load_scenario
+from railpilot.sim import engine
+from railpilot.sim.run import simulate
+
+s = load_scenario(sys.argv[1])
+s = replace(s, sim=replace(s.sim, duration_s=5.0))
+simulate(s, load_controller(sys.argv[2]) if len(sys.argv) > 2 else None)
+stats = engine.run_kernel.stats
+print(json.dumps({"hits": stats.cache_hits.total(), "misses": stats.cache_misses.total()}))
+"""
+
+
+def _loop_cache_stats(*args: str) -> dict[str, int]:
+    done = subprocess.run(
+        [sys.executable, "-c", CHILD, *args],
+        capture_output=True,
+        text=True,
+        check=True,
+        cwd=ROOT,
+        timeout=600,
+    )
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+@pytest.mark.parametrize(
+    "controller",
+    [
+        pytest.param((), id="built-in"),
+        pytest.param((f"{EXAMPLE}:CompiledTracker",), id="user-compiled"),
+        pytest.param((f"{EXAMPLE}:SpeedPositionTracker",), id="user-python"),
+    ],
+)
+def test_a_new_process_loads_the_loop_instead_of_compiling_it(controller: tuple[str, ...]) -> None:
+    _loop_cache_stats(str(PAPER002), *controller)  # fills the cache if it is empty
+    assert _loop_cache_stats(str(PAPER002), *controller) == {"hits": 1, "misses": 0}
