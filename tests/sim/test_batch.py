@@ -65,6 +65,28 @@ def test_chunk_size_does_not_change_any_run(reference_sweep, chunk):
     assert np.array_equal(reference_sweep.metrics, other.metrics, equal_nan=True)
 
 
+def test_long_runs_go_in_smaller_chunks_with_the_same_numbers(reference_sweep, monkeypatch):
+    from railpilot.sim import batch
+
+    # a day at the finest step: 5 runs a chunk keep the per-step table at 5e7 values
+    assert {b - a for a, b in batch._chunks(SPEC, 10_000_000)} == {5}
+    assert {b - a for a, b in batch._chunks(SPEC, N_STEPS)} == {SPEC.chunk}
+    # the sweep: as if a chunk of 10 of these runs were too large for memory
+    monkeypatch.setattr(batch, "MAX_CHUNK_STEPS", 3 * N_STEPS)
+    ran: list[tuple[int, int]] = []
+    real_run_chunk = batch.run_chunk
+
+    def recording(scenario, name, spec, start, stop):
+        ran.append((start, stop))
+        return real_run_chunk(scenario, name, spec, start, stop)
+
+    monkeypatch.setattr(batch, "run_chunk", recording)
+    smaller = sweep()
+    assert max(stop - start for start, stop in ran) == 3
+    assert sum(stop - start for start, stop in ran) == SPEC.runs
+    assert np.array_equal(reference_sweep.metrics, smaller.metrics, equal_nan=True)
+
+
 def test_run_chunk_alone_gives_those_rows_of_the_sweep(reference_sweep):
     # what a Dask worker executes: a pure function of (scenario, controller, spec, range)
     rows = run_chunk(NOISY, "qsmc", SPEC, 13, 21)

@@ -360,9 +360,21 @@ class MonteCarloResult:
         }
 
 
-def _chunks(spec: MonteCarloSpec) -> Iterator[tuple[int, int]]:
-    for start in range(0, spec.runs, spec.chunk):
-        yield start, min(start + spec.chunk, spec.runs)
+#: Most per-step values one chunk's inputs may hold (runs x steps): a random disturbance
+#: force is drawn for every step of every run of a chunk before it runs (8 bytes each),
+#: so a long run shrinks the chunk to keep that table within about 400 MB. The examples'
+#: chunks (500 runs of at most 24,000 steps, 1.2e7 values) are far below; a day-long
+#: run at the finest step (1e7 steps) runs 5 at a time. The numbers do not depend on
+#: the chunk: every run is the run it would be alone.
+MAX_CHUNK_STEPS = 50_000_000
+
+
+def _chunks(spec: MonteCarloSpec, n_steps: int) -> Iterator[tuple[int, int]]:
+    """The runs of each chunk: ``spec.chunk`` at a time, fewer where the runs are so
+    long that a chunk's per-step inputs would pass :data:`MAX_CHUNK_STEPS`."""
+    size = max(1, min(spec.chunk, MAX_CHUNK_STEPS // max(n_steps, 1)))
+    for start in range(0, spec.runs, size):
+        yield start, min(start + size, spec.runs)
 
 
 def run_montecarlo(
@@ -377,7 +389,7 @@ def run_montecarlo(
     values, seeds = spec.samples()
     check_spec(scenario, spec)  # a key that cannot apply fails now, not in a worker
     metrics = np.zeros((spec.runs, engine.N_METRICS))
-    chunks = list(_chunks(spec))
+    chunks = list(_chunks(spec, scenario.sim.n_steps))
     bar = _progress(len(chunks), spec.runs, progress)
     if scheduler is None:
         for start, stop in chunks:
