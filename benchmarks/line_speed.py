@@ -12,8 +12,9 @@ Prints one JSON object: ``sim_s`` (simulated), ``wall_s``, ``realtime_factor``
 and the run's safety KPIs. Issue 12's goal: a realtime factor of at least 500 for 60
 trains over 9 h on a 2-core machine. It is reported, never asserted.
 
-The first run of a process compiles the simulation core for each kind of train (numba,
-about 10 s); it is done before the clock starts (a short warm-up run with a train of each
+The simulation core is compiled for each kind of train (Numba, about 10 s) by the first
+run after a change to it, and loaded from Numba's cache (well under a second) after that;
+either way it is done before the clock starts (a short warm-up run with a train of each
 kind on the line).
 
 Usage: python benchmarks/line_speed.py [--trains 60] [--hours 9] [--loss 0.0]

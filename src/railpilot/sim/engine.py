@@ -559,11 +559,13 @@ def keep_going_if_the_cache_cannot_save(dispatcher: Any) -> None:
     """Let a compiled loop run when Numba cannot write its cache index.
 
     The loop takes compiled functions as arguments (the controller's and the brake's
-    steps). Numba stores such specialisations in its on-disk cache, but it cannot write
-    the index again once it has read entries of an earlier process (the function types it
-    unpickled refer to objects that are gone: ``ReferenceError``). The code compiled in
-    this process is correct either way, so the save is skipped and the process runs on
-    (that specialisation is compiled again by the next process that needs it).
+    steps). Numba stores such specialisations in its on-disk cache, and a step keeps its
+    identity from one process to the next (railpilot/jit_identity.py); but an index may
+    still hold entries for steps this process does not have (those of a module since
+    edited, which get another identity), and Numba cannot write the index again once the
+    function objects it unpickled for them are gone (``ReferenceError``). The code
+    compiled in this process is correct either way, so the save is skipped and the
+    process runs on (that specialisation is compiled again by the next process).
     """
     cache = dispatcher._cache
     save = cache.save_overload
