@@ -32,11 +32,12 @@ NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "railpilot")
 def same_in_every_process(dispatcher: D) -> D:
     """Give ``dispatcher`` (an ``@njit`` function of this package) a UUID that every
     process computes alike: from its module, its qualified name and its module's source.
-    Returns it, so it can wrap a registry's entry."""
+    Returns it, so it can wrap a registry's entry. For functions defined at a module's
+    top level: two closures made by one factory share a name and a source, so they would
+    share an identity too."""
     d: Any = dispatcher
     func = d.py_func
-    source = Path(sys.modules[func.__module__].__file__ or "").read_bytes()
-    digest = hashlib.sha256(source).hexdigest()
+    digest = hashlib.sha256(_source(func)).hexdigest()
     wanted = str(uuid.uuid5(NAMESPACE, f"{func.__module__}.{func.__qualname__}:{digest}"))
     # Numba draws its own UUID the first time the dispatcher is pickled, and keeps it
     given = d._MemoMixin__uuid
@@ -45,3 +46,15 @@ def same_in_every_process(dispatcher: D) -> D:
     elif given != wanted:
         raise RuntimeError(f"{func.__qualname__} already has a UUID of its own ({given})")
     return dispatcher
+
+
+def _source(func: Any) -> bytes:
+    """The source of ``func``'s module, or (a module without a readable file) its own
+    compiled code: what changes when the step does."""
+    path = getattr(sys.modules.get(func.__module__), "__file__", None)
+    if path:
+        try:
+            return Path(path).read_bytes()
+        except OSError:
+            pass
+    return func.__code__.co_code + repr(func.__code__.co_consts).encode()

@@ -60,3 +60,24 @@ def _loop_cache_stats(*args: str) -> dict[str, int]:
 def test_a_new_process_loads_the_loop_instead_of_compiling_it(controller: tuple[str, ...]) -> None:
     _loop_cache_stats(str(PAPER002), *controller)  # fills the cache if it is empty
     assert _loop_cache_stats(str(PAPER002), *controller) == {"hits": 1, "misses": 0}
+
+
+def test_a_steps_identity_follows_its_source() -> None:
+    from numba import njit
+
+    from railpilot.control.registry import CONTROLLERS
+    from railpilot.jit_identity import same_in_every_process
+
+    pid = CONTROLLERS["pid"].step
+    assert same_in_every_process(pid) is pid  # a second call keeps the identity it has
+
+    def make(scale: float):  # type: ignore[no-untyped-def]
+        def step(x):  # type: ignore[no-untyped-def]
+            return x * scale
+
+        return step
+
+    a = same_in_every_process(njit(make(2.0)))
+    b = same_in_every_process(njit(make(2.0)))
+    assert a._uuid == b._uuid  # the same name and source: the same identity, every time
+    assert a._uuid != pid._uuid
