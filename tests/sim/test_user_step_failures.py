@@ -108,3 +108,14 @@ def test_an_infinite_command_is_clamped_not_refused(scenario) -> None:  # type: 
 def test_a_step_of_another_signature_is_refused_when_bound() -> None:
     with pytest.raises(ConfigError, match=r"TwoArguments\.step.*control/base\.py"):
         bind(_controller(_two_arguments, "TwoArguments"))
+
+
+def test_a_builtin_step_that_gives_no_number_stops_the_run_naming_the_controller(
+    scenario,
+) -> None:  # type: ignore[no-untyped-def]
+    stepper = Stepper(scenario, "pid")
+    stepper.advance_to(5.0)
+    stepper.controller_params[:] = np.nan  # a line run changes these mid-run
+    with pytest.raises(ConfigError, match=r"controller = 'pid'.*NaN at t = 5(\.0\d*)? s"):
+        stepper.advance_to(10.0)
+    assert stepper.time_s < 5.5  # stopped at the first update after, not run on

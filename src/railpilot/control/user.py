@@ -193,10 +193,10 @@ class Binding:
     state: np.ndarray
     #: the Python object the step calls (the Python path), None for compiled steps
     python: Any = None
-    #: a user's compiled step, as its errors name it (``"CompiledTracker.step"``): the
-    #: simulator stops a run whose step gave no number and names it (sim/run.py
-    #: ``check_commands``); None for the built-ins and the Python path (which checks
-    #: every answer of ``update`` itself)
+    #: a user's compiled step, as errors name it (``"CompiledTracker.step"``); None for
+    #: a built-in (named by ``name``) and the Python path (which checks every answer of
+    #: ``update`` itself). The simulator stops a run whose step gave no number and
+    #: names it (sim/run.py ``check_commands``).
     user_step: str | None = None
 
     @property

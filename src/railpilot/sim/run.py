@@ -179,20 +179,27 @@ def run_once(
 
 
 def check_commands(binding: Binding, metrics: np.ndarray) -> None:
-    """A ConfigError naming a user's compiled step if it gave no number in a run
-    (``metrics``: one run's, or a batch's rows): the loop stopped that run there."""
-    if binding.user_step is None:
-        return
+    """A ConfigError naming the controller if it gave no number in a run (``metrics``:
+    one run's, or a batch's rows): the loop stopped that run there, and a run cut short
+    is never reported as a result."""
     stopped_at = np.asarray(metrics)[..., engine.M_NO_COMMAND_T]
     failed = ~np.isnan(stopped_at)
-    if failed.any():
-        t = float(np.ravel(stopped_at)[np.argmax(np.ravel(failed))])
+    if not failed.any():
+        return
+    t = float(np.ravel(stopped_at)[np.argmax(np.ravel(failed))])
+    if binding.user_step is not None:
         raise ConfigError(
             binding.user_step,
             f"no number at t = {t:g} s (NaN, or it raised an exception)",
             "a step that returns a number: the commanded acceleration [m/s^2] (call it "
             "from Python with the same arguments to see an exception it raises)",
         )
+    # a built-in's step: its parameters took it beyond floating point
+    raise ConfigError(
+        "controller",
+        binding.name,
+        f"parameters under which it commands a number (NaN at t = {t:g} s)",
+    )
 
 
 #: kernel metric index -> public name (railpilot.sim.result.METRICS defines them)

@@ -142,7 +142,7 @@ class Stepper:
                 self._compiled = _compiled_entry(self._kernel, args)
             else:
                 self._compiled(*args)
-        if self._binding.user_step is not None:
+        if not math.isnan(self._metrics[engine.M_NO_COMMAND_T]):
             check_commands(self._binding, self._metrics)
 
     def run_to_end(self) -> None:
