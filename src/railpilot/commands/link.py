@@ -1150,15 +1150,24 @@ def _jsonable(value: Any) -> Any:
     return value
 
 
+#: how a refusal of ``link proxy``'s options ends (it is no link endpoint)
+PROXY_NOT_STARTED = "the proxy was not started"
+
+
 def _link_proxy(args: argparse.Namespace) -> int:
     from railpilot.net.proxy import FaultProxy, ProxyOptions
 
-    lhost, lport = _host_port("--listen", args.listen)
-    uhost, uport = _host_port("--upstream", args.upstream)
-    _loopback("--listen", lhost)
-    _loopback("--upstream", uhost)
+    try:
+        lhost, lport = _host_port("--listen", args.listen)
+        uhost, uport = _host_port("--upstream", args.upstream)
+        _loopback("--listen", lhost)
+        _loopback("--upstream", uhost)
+        inject = b"" if args.inject is None else _inject_bytes(args.inject)
+    except LinkConfigError as exc:  # the proxy is no endpoint: say what did not happen
+        raise LinkConfigError(
+            exc.field, exc.value, exc.allowed, what_next=PROXY_NOT_STARTED
+        ) from None
     _seconds(args.seconds)
-    inject = b"" if args.inject is None else _inject_bytes(args.inject)
     directions = ("up", "down") if args.faults_on == "both" else (args.faults_on,)
     options = ProxyOptions(
         drop=args.drop,
@@ -1236,7 +1245,7 @@ def _inject_bytes(value: str) -> bytes:
             raise LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; the file is empty")
     if not _looks_hex(data):
         return data
-    return parse_hex(data, "--inject", what_next="the proxy was not started")
+    return parse_hex(data, "--inject", what_next=PROXY_NOT_STARTED)
 
 
 def _link_loadtest(args: argparse.Namespace) -> int:

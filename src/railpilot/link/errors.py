@@ -165,10 +165,14 @@ class LinkConfigError(LinkError, ValueError):
 
     what_next = "the endpoint was not created"
 
-    def __init__(self, field: str, value: Any, allowed: str) -> None:
+    def __init__(
+        self, field: str, value: Any, allowed: str, *, what_next: str | None = None
+    ) -> None:
         self.field = field
         self.value = value
         self.allowed = allowed
+        if what_next is not None:  # a tool that is no endpoint (the proxy) says its own
+            self.what_next = what_next
         super().__init__(
             f"{field} = {value!r} is not allowed: expected {allowed}; {self.what_next}"
         )
