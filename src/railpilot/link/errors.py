@@ -171,11 +171,9 @@ class LinkConfigError(LinkError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
-        if what_next is not None:  # a tool that is no endpoint (the proxy) says its own
-            self.what_next = what_next
-        super().__init__(
-            f"{field} = {value!r} is not allowed: expected {allowed}; {self.what_next}"
-        )
+        # a tool that is no endpoint (the proxy) says what did not happen to it instead
+        ending = self.what_next if what_next is None else what_next
+        super().__init__(f"{field} = {value!r} is not allowed: expected {allowed}; {ending}")
 
 
 class KeyFileError(LinkError):
