@@ -24,8 +24,8 @@ from typing import Any, TypeVar
 
 D = TypeVar("D")
 
-#: namespace of the UUIDs given here (any fixed UUID would do: this one is uuid5 of
-#: the project's name in the URL namespace, written out so it never changes)
+#: namespace of the UUIDs given here (any fixed UUID would do: uuid5 of the project's
+#: name is the same in every process and every release)
 NAMESPACE = uuid.uuid5(uuid.NAMESPACE_URL, "railpilot")
 
 
