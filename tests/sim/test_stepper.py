@@ -12,6 +12,7 @@ from railpilot.errors import ConfigError
 from railpilot.reproduce.precise_stop import heavy_haul_scenario
 from railpilot.reproduce.qsmc_stop import realistic_scenario
 from railpilot.scenario.model import ATOModel
+from railpilot.sim import engine
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.run import simulate
 from railpilot.sim.stepper import Stepper
@@ -48,8 +49,8 @@ def test_pieces_after_the_first_call_the_compiled_loop_directly():
     stepper = Stepper(heavy_haul_scenario(), "pstop")
     stepper.advance_to(1.0)
     entry = stepper._compiled
-    assert entry is not None and entry is not stepper._kernel
-    assert any(entry is o.entry_point for o in stepper._kernel.overloads.values())
+    assert entry is not None and entry is not engine.run_kernel
+    assert any(entry is o.entry_point for o in engine.run_kernel.overloads.values())
     stepper.advance_to(2.0)
     assert stepper.time_s == pytest.approx(2.0) and stepper._compiled is entry
 

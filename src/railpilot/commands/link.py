@@ -1217,32 +1217,29 @@ def _inject_bytes(value: str) -> bytes:
     """``--inject FILE|HEX``: the bytes of the file ``value`` names (parsed when they are hex
     text), else ``value`` itself when it is hex; anything else is refused, never injected
     as the characters of a mistyped file name."""
+
+    def refused(reason: str) -> LinkConfigError:
+        return LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; {reason}")
+
     try:
         mode: int | None = os.stat(value).st_mode
     except OSError as exc:  # a hex string longer than a file name may be is no file either
         if exc.errno not in (errno.ENOENT, errno.ENOTDIR, errno.ENAMETOOLONG):
-            raise LinkConfigError(
-                "--inject", value, f"{_INJECT_ALLOWED}; it cannot be read ({exc.strerror})"
-            ) from None
+            raise refused(f"it cannot be read ({exc.strerror})") from None
         mode = None
     if mode is None:
         data = value.encode("utf-8", "surrogateescape")
         if not _looks_hex(data):
-            raise LinkConfigError(
-                "--inject", value, f"{_INJECT_ALLOWED}; no such file, and not hex"
-            )
+            raise refused("no such file, and not hex")
     elif not stat.S_ISREG(mode):
-        what = "a directory" if stat.S_ISDIR(mode) else "not a regular file"
-        raise LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; it is {what}")
+        raise refused("it is a directory" if stat.S_ISDIR(mode) else "it is not a regular file")
     else:
         try:
             data = Path(value).read_bytes()
         except OSError as exc:
-            raise LinkConfigError(
-                "--inject", value, f"{_INJECT_ALLOWED}; the file cannot be read ({exc.strerror})"
-            ) from None
+            raise refused(f"the file cannot be read ({exc.strerror})") from None
         if not data:
-            raise LinkConfigError("--inject", value, f"{_INJECT_ALLOWED}; the file is empty")
+            raise refused("the file is empty")
     if not _looks_hex(data):
         return data
     return parse_hex(data, "--inject", what_next=PROXY_NOT_STARTED)

@@ -171,7 +171,8 @@ def step_pointer(owner: str, step: Dispatcher) -> Any:
     try:
         return cfunc(STEP_SIGNATURE)(call)
     except NumbaError as exc:  # a step Numba cannot compile for control/base.py's signature
-        first = str(exc).strip().splitlines()[0] if str(exc).strip() else type(exc).__name__
+        said = str(exc).strip()
+        first = said.splitlines()[0] if said else type(exc).__name__
         raise ConfigError(
             owner,
             getattr(step, "__name__", step),

@@ -384,7 +384,8 @@ def run_kernel(
             )
             if u != u:
                 # the controller gave no number (a user's step that returned NaN or
-                # raised, control/user.py): the run stops here and the caller names it
+                # raised, control/user.py; a built-in's under NaN parameters): the run
+                # stops here and the caller names it (sim/run.py check_commands)
                 no_command_t = t
                 break
             u = min(max(u, u_min), u_hi)

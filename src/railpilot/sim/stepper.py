@@ -57,7 +57,6 @@ class Stepper:
         self._record_every = max(scenario.sim.record_every, 1)
         self._record = np.zeros((-(-n // self._record_every), engine.N_CHANNELS))
         self._metrics = np.zeros(engine.N_METRICS)
-        self._kernel = engine.run_kernel
         self._compiled: Any = None  # the kernel's compiled entry for these arguments
         # read once: a line run asks a stepper to advance several times a second per train,
         # and most asks fall within the step already run
@@ -138,8 +137,8 @@ class Stepper:
         )
         with self._binding:
             if self._compiled is None:
-                self._kernel(*args)  # compiled (or loaded) for these argument types
-                self._compiled = _compiled_entry(self._kernel, args)
+                engine.run_kernel(*args)  # compiled (or loaded) for these argument types
+                self._compiled = _compiled_entry(engine.run_kernel, args)
             else:
                 self._compiled(*args)
         if not math.isnan(self._metrics[engine.M_NO_COMMAND_T]):
