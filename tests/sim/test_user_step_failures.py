@@ -71,9 +71,15 @@ def scenario():  # type: ignore[no-untyped-def]
     return replace(s, sim=replace(s.sim, duration_s=20.0))
 
 
-@pytest.mark.parametrize(("step", "name"), [(_nan_late, "NanLate"), (_raises_late, "RaisesLate")])
-def test_a_step_without_a_number_stops_simulate_naming_it_and_the_time(
-    scenario, step, name: str
+@pytest.mark.parametrize(
+    ("step", "name", "said"),
+    [
+        (_nan_late, "NanLate", "it returned NaN"),
+        (_raises_late, "RaisesLate", "it raised ValueError: the user's own error"),
+    ],
+)
+def test_a_step_without_a_number_stops_simulate_naming_it_the_time_and_what_it_did(
+    scenario, step, name: str, said: str
 ) -> None:  # type: ignore[no-untyped-def]
     period = scenario.sim.dt_s * scenario.sim.control_every
     with pytest.raises(ConfigError) as caught:
@@ -81,17 +87,41 @@ def test_a_step_without_a_number_stops_simulate_naming_it_and_the_time(
     assert caught.value.field == f"{name}.step"
     # the first update is at t = 0, so the FAIL_AT-th is at (FAIL_AT - 1) periods
     assert f"t = {(FAIL_AT - 1) * period:g} s" in str(caught.value)
+    # the step, called again from Python with that update's inputs, shows its own error
+    assert said in str(caught.value)
+    if step is _raises_late:
+        assert isinstance(caught.value.__cause__, ValueError)
 
 
-def test_a_batch_names_the_step_too_and_the_stepper_stops_at_the_failing_update(
+@njit
+def _raises_beyond(params, state, ref_x, ref_v, ref_a, x, v, resist, u_min, u_max, dt):  # type: ignore[no-untyped-def]
+    if x > params[0]:
+        raise ZeroDivisionError("past the position in params[0]")
+    return ref_a + resist
+
+
+def test_the_error_shows_the_failing_updates_own_inputs(scenario) -> None:  # type: ignore[no-untyped-def]
+    # a step that raises only past a position: called again with any other update's
+    # inputs (the first, say) it would answer a number
+    free = _controller(_raises_beyond, "RaisesBeyond")
+    free.params[0] = np.inf
+    x = simulate(scenario, free).series["position_m"]
+    assert x[-1] > x[0] + 10.0  # the run moves far enough to pass the middle
+    controller = _controller(_raises_beyond, "RaisesBeyond")
+    controller.params[0] = float(0.5 * (x[0] + x[-1]))
+    with pytest.raises(ConfigError, match="it raised ZeroDivisionError: past the position"):
+        simulate(scenario, controller)
+
+
+def test_a_batch_and_the_stepper_show_what_the_step_did_too(
     scenario,
 ) -> None:  # type: ignore[no-untyped-def]
-    binding = bind(_controller(_nan_late, "NanLate"))
+    binding = bind(_controller(_raises_late, "RaisesLate"))
     inp = run_inputs(scenario, binding)
-    with pytest.raises(ConfigError, match=r"NanLate\.step"):
+    with pytest.raises(ConfigError, match=r"RaisesLate\.step.*ValueError: the user's own error"):
         run_batch(stack_runs([inp, inp]), binding, brake_entry_of(scenario.brake).step)
     stepper = Stepper(scenario, _controller(_nan_late, "NanLate"))
-    with pytest.raises(ConfigError, match=r"NanLate\.step"):
+    with pytest.raises(ConfigError, match=r"NanLate\.step.*it returned NaN"):
         stepper.run_to_end()
     period = scenario.sim.dt_s * scenario.sim.control_every
     # the run stopped at the failing update: nothing after it was simulated

@@ -156,8 +156,8 @@ def step_pointer(owner: str, step: Dispatcher) -> Any:
     call through the pointer costs nanoseconds a control update.
 
     An exception cannot leave a C callback, so one raised by the step becomes NaN, which
-    the loop stops the run at and the simulator reports, naming ``owner``
-    (sim/run.py ``check_commands``).
+    the loop stops the run at and the simulator reports, naming ``owner`` and what the
+    step raises when it calls it again from Python (sim/run.py ``check_commands``).
     """
 
     def call(  # type: ignore[no-untyped-def]
@@ -199,6 +199,9 @@ class Binding:
     #: ``update`` itself). The simulator stops a run whose step gave no number and
     #: names it (sim/run.py ``check_commands``).
     user_step: str | None = None
+    #: that step itself (a Numba dispatcher, callable from Python), so the simulator can
+    #: call it again with the failing update's inputs and show what it raised
+    user_dispatcher: Any = None
 
     @property
     def parallel_safe(self) -> bool:
@@ -236,7 +239,9 @@ def bind(controller: Any) -> Binding:
         params = np.asarray(controller.params, dtype=float)
         state = np.asarray(controller.state, dtype=float)
         pointer = step_pointer(owner, step)
-        return Binding(name, pointer, params.copy(), state.copy(), user_step=owner)
+        return Binding(
+            name, pointer, params.copy(), state.copy(), user_step=owner, user_dispatcher=step
+        )
     if callable(getattr(controller, "update", None)) and callable(
         getattr(controller, "reset", None)
     ):

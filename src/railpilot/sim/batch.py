@@ -41,7 +41,7 @@ from railpilot.sim.inputs import (
     reference_inputs,
     run_inputs,
 )
-from railpilot.sim.layout import LineIn, ReferenceIn, RunInputs, batch_row, stack_runs
+from railpilot.sim.layout import LineIn, ReferenceIn, RunInputs, RunState, batch_row, stack_runs
 from railpilot.sim.run import check_commands, metrics_dict, resolve_controller
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.units import kmh_to_mps, tonne_to_kg
@@ -224,7 +224,7 @@ def run_batch(
     bounds = np.linspace(0, runs, n + 1).astype(int)
     if n == 1:
         run_batch_kernel(batch, binding.step, brake_step, metrics, 0, runs)
-        check_commands(binding, metrics)
+        check_commands(binding, metrics, _state_at_failure(batch, binding, brake_step))
         return metrics
     # compile (or load) once before the threads race to do it
     run_batch_kernel(batch, binding.step, brake_step, metrics, 0, 0)
@@ -235,8 +235,29 @@ def run_batch(
         ]
         for job in jobs:
             job.result()
-    check_commands(binding, metrics)
+    check_commands(binding, metrics, _state_at_failure(batch, binding, brake_step))
     return metrics
+
+
+def _state_at_failure(
+    batch: RunInputs, binding: Binding, brake_step: Any
+) -> Callable[[int], RunState]:
+    """Run ``i``'s state where the loop stopped it, for an error (sim/run.py
+    ``check_commands``): the batch keeps no run's state, so that run is run again alone,
+    the same run to the bit (a run depends only on its row)."""
+
+    def state_of(i: int) -> RunState:
+        row = batch_row(batch, i)
+        state = engine.fresh_state(row)
+        empty = np.zeros((0, engine.N_CHANNELS))
+        metrics = np.zeros(engine.N_METRICS)
+        with binding:
+            engine.run_kernel(
+                row, binding.step, brake_step, empty, 1, metrics, state, row.sim.n_steps
+            )
+        return state
+
+    return state_of
 
 
 def _chunk_inputs(

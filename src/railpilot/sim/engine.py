@@ -55,6 +55,7 @@ from railpilot.sim.layout import (
     C_E_FRIC,
     C_E_TRAC,
     C_E_TRAC_AIR,
+    C_FAILED_CALL,
     C_HAS_MOVED,
     C_MAX_DECEL,
     C_MAX_JERK,
@@ -387,6 +388,15 @@ def run_kernel(
                 # raised, control/user.py; a built-in's under NaN parameters): the run
                 # stops here and the caller names it (sim/run.py check_commands)
                 no_command_t = t
+                c[C_FAILED_CALL] = rx
+                c[C_FAILED_CALL + 1] = rv
+                c[C_FAILED_CALL + 2] = raff
+                c[C_FAILED_CALL + 3] = x_odo
+                c[C_FAILED_CALL + 4] = v_meas
+                c[C_FAILED_CALL + 5] = r_model
+                c[C_FAILED_CALL + 6] = u_min
+                c[C_FAILED_CALL + 7] = u_hi
+                c[C_FAILED_CALL + 8] = ctrl_dt
                 break
             u = min(max(u, u_min), u_hi)
             if notches > 0.0:

@@ -92,7 +92,13 @@ B_N_STATE, B_N_BUFFER = range(2)
     C_RAFF,
     C_E_TRAC_AIR,
 ) = range(32)
-N_CARRY = 32
+# the inputs of the control update at which the controller gave no number (ref_x, ref_v,
+# ref_a, x, v, resist_mps2, u_min, u_max, dt: control/base.py's step after its two
+# arrays), so the simulator can call a user's step again from Python and show what it
+# raised (sim/run.py check_commands)
+C_FAILED_CALL = 32
+N_FAILED_CALL = 9
+N_CARRY = C_FAILED_CALL + N_FAILED_CALL
 
 
 class SimIn(NamedTuple):

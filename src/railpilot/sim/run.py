@@ -9,6 +9,8 @@ recorder; railpilot.sim.batch runs the same description for many runs.
 from __future__ import annotations
 
 import inspect
+import math
+from collections.abc import Callable
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -20,7 +22,7 @@ from railpilot.control.user import Binding, bind, is_user_spec, load_controller
 from railpilot.errors import ConfigError
 from railpilot.sim import engine
 from railpilot.sim.inputs import distance_table, run_inputs, tuning_model
-from railpilot.sim.layout import RunInputs
+from railpilot.sim.layout import C_FAILED_CALL, N_FAILED_CALL, RunInputs, RunState
 from railpilot.sim.result import CHANNELS, SimResult
 from railpilot.units import mps_to_kmh
 
@@ -163,43 +165,71 @@ def run_once(
     n_rec = (n + record_every - 1) // record_every if record_every > 0 else 0
     record = np.zeros((n_rec, engine.N_CHANNELS))
     metrics = np.zeros(engine.N_METRICS)
+    state = engine.fresh_state(inp)
     with binding:
         engine.run_kernel(
-            inp,
-            binding.step,
-            brake_step,
-            record,
-            max(record_every, 1),
-            metrics,
-            engine.fresh_state(inp),
-            n,
+            inp, binding.step, brake_step, record, max(record_every, 1), metrics, state, n
         )
-    check_commands(binding, metrics)
+    check_commands(binding, metrics, lambda _run: state)
     return metrics, record
 
 
-def check_commands(binding: Binding, metrics: np.ndarray) -> None:
+def check_commands(
+    binding: Binding,
+    metrics: np.ndarray,
+    state_of: Callable[[int], RunState] | None = None,
+) -> None:
     """A ConfigError naming the controller if it gave no number in a run (``metrics``:
     one run's, or a batch's rows): the loop stopped that run there, and a run cut short
-    is never reported as a result."""
-    stopped_at = np.asarray(metrics)[..., engine.M_NO_COMMAND_T]
+    is never reported as a result.
+
+    ``state_of(i)`` gives run ``i``'s state where the loop stopped it; with it, a user's
+    compiled step is called again from Python with that update's inputs, so the error
+    shows what it raised (no exception crosses the C function pointer the loop calls it
+    through, control/user.py ``step_pointer``).
+    """
+    stopped_at = np.ravel(np.asarray(metrics)[..., engine.M_NO_COMMAND_T])
     failed = ~np.isnan(stopped_at)
     if not failed.any():
         return
-    t = float(np.ravel(stopped_at)[np.argmax(np.ravel(failed))])
+    run = int(np.argmax(failed))
+    t = float(stopped_at[run])
     if binding.user_step is not None:
-        raise ConfigError(
-            binding.user_step,
-            f"no number at t = {t:g} s (NaN, or it raised an exception)",
-            "a step that returns a number: the commanded acceleration [m/s^2] (call it "
-            "from Python with the same arguments to see an exception it raises)",
+        allowed = "a step that returns a number: the commanded acceleration [m/s^2]"
+        if binding.user_dispatcher is None or state_of is None:
+            raise ConfigError(binding.user_step, f"no number at t = {t:g} s", allowed)
+        answer = _call_again(binding.user_dispatcher, state_of(run))
+        if isinstance(answer, Exception):
+            raise ConfigError(
+                binding.user_step,
+                f"no number at t = {t:g} s: it raised {type(answer).__name__}: {answer}",
+                allowed,
+            ) from answer
+        said = (
+            "it returned NaN"
+            if math.isnan(answer)
+            # the failed call changed the state it would have failed on again
+            else f"NaN, or an exception; called again on the state it left, it gave {answer:g}"
         )
+        raise ConfigError(binding.user_step, f"no number at t = {t:g} s ({said})", allowed)
     # a built-in's step: its parameters took it beyond floating point
     raise ConfigError(
         "controller",
         binding.name,
         f"parameters under which it commands a number (NaN at t = {t:g} s)",
     )
+
+
+def _call_again(step: Any, state: RunState) -> float | Exception:
+    """What ``step`` answers, called from Python with the inputs of the update at which
+    the loop stopped ``state``'s run (sim/layout.py ``C_FAILED_CALL``), on copies of that
+    run's parameters and state as the failed call left them: the number, or the exception
+    it raises."""
+    inputs = state.c[C_FAILED_CALL : C_FAILED_CALL + N_FAILED_CALL]
+    try:
+        return float(step(state.ctrl_p.copy(), state.ctrl_s.copy(), *map(float, inputs)))
+    except Exception as exc:  # the user's error, shown to the user: every kind
+        return exc
 
 
 #: kernel metric index -> public name (railpilot.sim.result.METRICS defines them)

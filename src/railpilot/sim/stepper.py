@@ -142,7 +142,7 @@ class Stepper:
             else:
                 self._compiled(*args)
         if not math.isnan(self._metrics[engine.M_NO_COMMAND_T]):
-            check_commands(self._binding, self._metrics)
+            check_commands(self._binding, self._metrics, lambda _run: self._state)
 
     def run_to_end(self) -> None:
         self.advance_to(self.n_steps * self._dt)
