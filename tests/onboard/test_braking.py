@@ -244,3 +244,25 @@ def test_bad_inputs_name_the_field(kwargs, field):
     with pytest.raises(ConfigError) as err:
         tsr_check(HEAVY, level_table(), 0.0, 20.0, **args)
     assert err.value.field == field
+
+
+@pytest.mark.parametrize(
+    ("kwargs", "field"),
+    [
+        # before, 1e-12 s asked for 3.6e15 steps of trace (a MemoryError)
+        ({"dt_s": 1e-12}, "dt_s"),
+        ({"dt_s": 0.0}, "dt_s"),
+        ({"horizon_s": math.inf}, "horizon_s"),  # before: OverflowError from ceil
+        ({"horizon_s": -1.0}, "horizon_s"),  # before: ValueError from np.empty
+        ({"horizon_s": 1e9}, "horizon_s"),
+    ],
+)
+def test_a_prediction_refuses_a_step_or_horizon_it_cannot_hold(kwargs, field):
+    with pytest.raises(ConfigError) as err:
+        predict_braking(HEAVY, level_table(), 0.0, 20.0, **kwargs)
+    assert err.value.field == field
+
+
+def test_a_prediction_at_the_finest_step_and_longest_horizon_runs():
+    run = predict_braking(HEAVY, level_table(), 0.0, 20.0, dt_s=1e-3, horizon_s=3600.0)
+    assert run.reached_speed

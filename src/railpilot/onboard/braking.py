@@ -45,6 +45,9 @@ from railpilot.vehicle.train import Train
 DEFAULT_DT_S = 0.05
 #: longest prediction [s]: a train that has not reached its target by then never will
 MAX_HORIZON_S = 3600.0
+#: finest integration step [s]: a prediction over the longest horizon keeps its trace
+#: (3 floats a step) within about 90 MB
+MIN_DT_S = 1e-3
 
 # params layout of the compiled loop
 (
@@ -283,8 +286,10 @@ def predict_braking(
     """
     if not (np.isfinite(v0_mps) and v0_mps >= 0):
         raise ConfigError("v0_mps", v0_mps, "a finite speed >= 0 [m/s]")
-    if not (np.isfinite(dt_s) and 0 < dt_s <= 1.0):
-        raise ConfigError("dt_s", dt_s, "a step in (0, 1] s")
+    if not (np.isfinite(dt_s) and MIN_DT_S <= dt_s <= 1.0):
+        raise ConfigError("dt_s", dt_s, f"a step in [{MIN_DT_S:g}, 1] s")
+    if not (np.isfinite(horizon_s) and 0 < horizon_s <= MAX_HORIZON_S):
+        raise ConfigError("horizon_s", horizon_s, f"a time in (0, {MAX_HORIZON_S:g}] s")
     if not (np.isfinite(until_speed_mps) and until_speed_mps >= 0):
         raise ConfigError("until_speed_mps", until_speed_mps, "a finite speed >= 0 [m/s]")
     direction = 1.0 if direction >= 0 else -1.0
