@@ -50,6 +50,27 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
     assert out["trains"]["101"]["finished"]
     assert out["link"]["ground"]["frames_received"] > 0
     assert (tmp_path / "time_distance.png").stat().st_size > 10_000
+    # the run's files: what was printed, and the tables behind it
+    assert json.loads((tmp_path / "kpis.json").read_text()) == out
+    assert out["files"] == [
+        str(tmp_path / name)
+        for name in ("time_distance.png", "trace.csv", "sections.csv", "events.json", "kpis.json")
+    ]
+    with (tmp_path / "sections.csv").open(newline="") as f:
+        sections = list(csv.DictReader(f))
+    assert [r["driver"] for r in sections] == ["advised", "baseline"]  # one section each
+    advised = sections[0]
+    assert float(advised["conformity_pct"]) == pytest.approx(
+        out["trains"]["101"]["conformity_pct"]["sections"][0], abs=5e-4
+    )
+    net = float(advised["energy_traction_kwh"]) - float(advised["energy_regenerated_kwh"])
+    assert net == pytest.approx(out["trains"]["101"]["energy_kwh"], abs=0.05)
+    with (tmp_path / "trace.csv").open(newline="") as f:
+        trace = list(csv.DictReader(f))
+    assert {r["driver"] for r in trace} == {"advised", "baseline"}
+    events = json.loads((tmp_path / "events.json").read_text())
+    assert events["run"]["driver"] == "advised"
+    assert events["baseline"]["driver"] == "baseline"
 
 
 @pytest.mark.parametrize(

@@ -9,10 +9,13 @@ import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from railpilot.commands._common import json_text, log, out_dir_argument, print_json
 from railpilot.errors import ConfigError
+
+if TYPE_CHECKING:
+    from railpilot.cosim.line_run import LineResult
 
 #: the KPIs a sweep gives the distribution of (dotted paths into ``LineResult.kpis()``)
 SWEPT = (
@@ -60,8 +63,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--out",
         type=out_dir_argument,
-        help="folder for the time-distance figure (one run), or for runs.csv (each seed's "
-        "KPIs) and sweep.json (what is printed) of a sweep (--runs N)",
+        help="folder for one run's files (time_distance.png, trace.csv, sections.csv, "
+        "events.json, kpis.json), or for a sweep's (--runs N): runs.csv (each seed's KPIs) "
+        "and sweep.json (what is printed)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
@@ -168,13 +172,7 @@ def run(args: argparse.Namespace) -> int:
             log(f"baseline: {baseline.wall_s:.1f} s")
         out = result.kpis(baseline)
         if args.out is not None:
-            from railpilot.report.figure import save_figure
-            from railpilot.report.line_plots import time_distance
-
-            args.out.mkdir(parents=True, exist_ok=True)
-            path = args.out / "time_distance.png"
-            save_figure(time_distance(result, baseline), path)
-            out["files"] = [str(path)]
+            out["files"] = _write_run(args.out, out, result, baseline)
     if args.json:
         print_json(out)
     else:
@@ -279,6 +277,37 @@ def _write_sweep(folder: Path, out: dict[str, Any], results: list[dict[str, Any]
             values = (_dig(run, key) for key in SWEPT)
             writer.writerow([run["seed"], *("" if v is None else v for v in values)])
     summary.write_text(json_text({**out, "files": files}), encoding="utf-8")
+    return files
+
+
+def _write_run(
+    folder: Path, out: dict[str, Any], result: LineResult, baseline: LineResult | None
+) -> list[str]:
+    """One run's files in ``folder`` (cosim/export.py): ``time_distance.png``,
+    ``trace.csv`` and ``sections.csv`` (the baseline's rows after the run's, told apart by
+    ``driver``), ``events.json`` (the run's, and the baseline's beside it) and
+    ``kpis.json`` (``out`` as printed, these files listed); returns their paths."""
+    import pandas as pd
+
+    from railpilot.cosim.export import events_document, section_table, trace_table
+    from railpilot.report.figure import save_figure
+    from railpilot.report.line_plots import time_distance
+
+    runs = [result] if baseline is None else [result, baseline]
+    folder.mkdir(parents=True, exist_ok=True)
+    paths = [
+        folder / name
+        for name in ("time_distance.png", "trace.csv", "sections.csv", "events.json", "kpis.json")
+    ]
+    figure, trace, sections, events, kpis = paths
+    files = [str(p) for p in paths]
+    save_figure(time_distance(result, baseline), figure)
+    pd.concat([trace_table(r) for r in runs], ignore_index=True).to_csv(trace, index=False)
+    pd.concat([section_table(r) for r in runs], ignore_index=True).to_csv(sections, index=False)
+    documents = [events_document(r) for r in runs]
+    both = {"run": documents[0], "baseline": documents[1]} if baseline else documents[0]
+    events.write_text(json_text(both), encoding="utf-8")
+    kpis.write_text(json_text({**out, "files": files}), encoding="utf-8")
     return files
 
 

@@ -233,7 +233,7 @@ class LineResult:
                 1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
             ),
             "link": self.link,
-            "retiming": _retiming_summary(self.retiming),
+            "retiming": _retiming_summary(self.retiming, self.scenario.epoch_s),
             "ground_restarts": self.restarts,
             "wall_s": round(self.wall_s, 3),
             **({"live": self.live} if self.live is not None else {}),
@@ -259,9 +259,11 @@ class LineResult:
         return out
 
 
-def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
+def _retiming_summary(log: list[dict[str, Any]], epoch_s: float) -> dict[str, Any]:
     """The ground's re-timings: how many, how solved, who was sent new times, and what
-    the solver expected (lateness at the destinations [s], fixed plan against re-timed)."""
+    the solver expected (lateness at the destinations [s], fixed plan against re-timed).
+    Their times are the run's, as every other time of the KPIs (the ground's log keeps its
+    own clock's, ``epoch_s`` on)."""
     solved = [e for e in log if "lateness_s" in e]
     return {
         "runs": len(solved),
@@ -270,7 +272,7 @@ def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
         "messages_sent": sum(len(e.get("sent_to", ())) for e in solved),
         "log": [
             {
-                "t_s": round(e["t_s"], 1),
+                "t_s": round(e["t_s"] - epoch_s, 1),
                 "trigger": e["trigger"],
                 "status": e["status"],
                 "trains": e["trains"],
