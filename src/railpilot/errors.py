@@ -7,7 +7,12 @@ user can fix a scenario file without reading our code.
 from __future__ import annotations
 
 import math
+import re
+from decimal import Decimal
 from typing import Any
+
+#: a run of more digits than this is no number a reader takes in (``10**400`` written out)
+_LONG_DIGITS = re.compile(r"\d{31,}")
 
 
 class RailpilotError(Exception):
@@ -31,7 +36,9 @@ class ConfigError(RailpilotError, ValueError):
         self.field = field
         self.value = value
         self.allowed = allowed
-        super().__init__(f"{field} = {value!r} is not allowed: expected {allowed}")
+        # field and allowed may quote the file too (an entry's label, a neighbour's value)
+        message = f"{field} = {shown(value)} is not allowed: expected {allowed}"
+        super().__init__(_shorter_numbers(message))
 
 
 class ScenarioError(ConfigError):
@@ -53,13 +60,28 @@ class LineError(ConfigError):
             self.args = (f"{source}: {self.args[0]}",)
 
 
+def shown(value: object) -> str:
+    """``repr(value)`` for an error message, every integer of more than 30 digits in it
+    written as ``1.000e+400``: TOML integers are unbounded, and an error must stay readable."""
+    if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
+        return f"{Decimal(value):.3e}"  # also past repr's limit of 4300 digits
+    return _shorter_numbers(repr(value))
+
+
+def _shorter_numbers(text: str) -> str:
+    """``text`` with every run of more than 30 digits written as ``1.000e+400``."""
+    return _LONG_DIGITS.sub(lambda digits: f"{Decimal(digits.group()):.3e}", text)
+
+
 def is_finite_number(value: object) -> bool:
     """A real, finite number (an int or a float, not a bool): what a check of a number
-    from a file, a form or a message starts from."""
+    from a file, a form or a message starts from. An int too large for a float (TOML's
+    ``10**400``) is none: every use of the number reads it as a float."""
     if type(value) is float:  # the common case, checked millions of times in a line run
         return math.isfinite(value)
-    return (
-        isinstance(value, int | float)
-        and not isinstance(value, bool)
-        and math.isfinite(float(value))
-    )
+    if not isinstance(value, int | float) or isinstance(value, bool):
+        return False
+    try:
+        return math.isfinite(float(value))
+    except OverflowError:
+        return False

@@ -8,11 +8,16 @@ subclass the caller gives), never an ``OSError`` or ``UnicodeDecodeError`` trace
 from __future__ import annotations
 
 import os
+import sys
 import tomllib
 from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError
+
+#: what tomllib cannot read: an integer of more digits than Python converts to text
+#: (``sys.set_int_max_str_digits``); tomllib raises a plain ValueError for it
+TOO_MANY_DIGITS = f"integers of at most {sys.get_int_max_str_digits()} digits"
 
 
 def read_text(
@@ -45,3 +50,5 @@ def read_toml(
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise error(field, str(path), f"valid TOML ({exc})") from None
+    except ValueError:  # tomllib's int() of a literal past Python's digit limit
+        raise error(field, str(path), f"valid TOML ({TOO_MANY_DIGITS})") from None

@@ -46,6 +46,12 @@ def tonne_to_kg(mass_t: Num) -> Num:
     return mass_t * 1000.0
 
 
+#: Largest km post a file may give, either sign [km]: as line files and the train-ground
+#: link allow (line/model.py and link/messages.py MAX_POSITION_M); far beyond it positions
+#: lose their metre resolution, and 1e308 km is no position at all (inf m)
+MAX_KM_POST = 10_000.0
+
+
 def km_post_to_m(km_post: Num) -> Num:
     """Convert a km post [km along the line] to a position [m]."""
     return km_post * 1000.0

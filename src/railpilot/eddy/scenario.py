@@ -46,7 +46,7 @@ from railpilot.eddy.simulate import MAX_STEPS, EddyResult, simulate_eddy
 from railpilot.eddy.table import TorqueTable, load_torque_table_csv
 from railpilot.eddy.torque_model import EddyBrakeParams
 from railpilot.eddy.train import TrainParams
-from railpilot.errors import ConfigError, ScenarioError
+from railpilot.errors import ConfigError, ScenarioError, is_finite_number
 from railpilot.units import kmh_to_mps, mps_to_kmh
 
 KIND = "eddy-brake"
@@ -108,9 +108,9 @@ MAX_TORQUE_DEMAND_NM = 100_000.0
 def _number(key: str, value: Any, *, integer: bool = False) -> float:
     if isinstance(value, bool) or not isinstance(value, int | float):
         raise ScenarioError(key, value, "an integer" if integer else "a number")
-    if integer and not float(value).is_integer():
+    if integer and not (isinstance(value, int) or value.is_integer()):
         raise ScenarioError(key, value, "an integer")
-    if not math.isfinite(float(value)):
+    if not is_finite_number(value):  # nan, inf, and an int no float holds (10**400)
         raise ScenarioError(key, value, "a finite number")
     return float(value)
 

@@ -34,7 +34,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from railpilot.errors import ConfigError, RailpilotError
+from railpilot.errors import ConfigError, RailpilotError, is_finite_number, shown
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link.messages import U32_MAX, TargetReason, TravelDirection
 from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post, mps_to_kmh
@@ -167,6 +167,8 @@ def _show(value: object) -> str:
         return value.strip()
     if isinstance(value, float) and value.is_integer():
         return f"{value:g}"
+    if isinstance(value, int) and not isinstance(value, bool):
+        return shown(value)  # as written; a 400-digit one as 1.000e+400
     return repr(value) if value is None or isinstance(value, bool) else str(value)
 
 
@@ -199,7 +201,8 @@ class _Fields:
             return math.nan
         value: float | None = None
         if isinstance(raw, int | float) and not isinstance(raw, bool):
-            value = float(raw)
+            # an int no float holds (10**400) is no number either
+            value = float(raw) if is_finite_number(raw) else None
         elif isinstance(raw, str):
             try:
                 value = float(raw.strip())

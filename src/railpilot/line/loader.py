@@ -26,7 +26,6 @@ Each list may equally be written as ``[[gradients]]`` tables.
 from __future__ import annotations
 
 import functools
-import math
 import os
 import threading
 import tomllib
@@ -35,7 +34,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any, TypeVar
 
-from railpilot.errors import LineError
+from railpilot.errors import LineError, is_finite_number
 from railpilot.line.model import (
     DOWN,
     UP,
@@ -48,8 +47,8 @@ from railpilot.line.model import (
     Station,
 )
 from railpilot.link.messages import TravelDirection
-from railpilot.textfile import read_text
-from railpilot.units import km_post_to_m, kmh_to_mps
+from railpilot.textfile import TOO_MANY_DIGITS, read_text
+from railpilot.units import MAX_KM_POST, km_post_to_m, kmh_to_mps
 
 T = TypeVar("T")
 
@@ -78,6 +77,15 @@ SIGNAL_KEYS = ("id", "km", "direction", "kind")
 BLOCK_KEYS = ("id", "direction", "start_km", "end_km")
 
 _DIRECTIONS: dict[str, TravelDirection] = {"up": UP, "down": DOWN}
+
+
+def _km_text(value: Any) -> str | None:
+    """A km post as an entry's label writes it (``"12.400"``), or None when the value is
+    no km post to show: not a number, or beyond MAX_KM_POST (``1e300`` written out has
+    300 digits, and ``10**400`` does not convert to a float at all)."""
+    if is_finite_number(value) and abs(value) <= MAX_KM_POST:
+        return f"{value:.3f}"
+    return None
 
 
 class _Entry:
@@ -111,13 +119,20 @@ class _Entry:
                 raise LineError(self.key(key), None, "a number (the key is required)")
             return default
         value = self.data[key]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or not math.isfinite(value)
-        ):
+        if not is_finite_number(value):  # nan, inf, and an int no float holds (10**400)
             raise LineError(self.key(key), value, "a finite number")
         return float(value)
+
+    def km_post(self, key: str, default: float | None = None) -> float:
+        """A km post [km] within MAX_KM_POST either way, the bound of scenario files too.
+        The model then checks it lies on the line; this bound comes first so that no
+        label or message writes out ``1e300`` km (300 digits)."""
+        value = self.number(key, default)
+        if not -MAX_KM_POST <= value <= MAX_KM_POST:
+            raise LineError(
+                self.key(key), value, f"a km post in [{-MAX_KM_POST:g}, {MAX_KM_POST:g}]"
+            )
+        return value
 
     def integer(self, key: str) -> int:
         value = self.data.get(key)
@@ -140,10 +155,10 @@ class _Entry:
         return value
 
     def span_label(self, kind: str, index: int, extra: str = "") -> str:
-        """``kind[index] (extra, km a-b)`` when both km posts read as numbers."""
-        start, end = self.data.get("start_km"), self.data.get("end_km")
-        if all(isinstance(v, int | float) and not isinstance(v, bool) for v in (start, end)):
-            return f"{kind}[{index}] ({extra}km {start:.3f}-{end:.3f})"
+        """``kind[index] (extra, km a-b)`` when both km posts read as km posts."""
+        start, end = _km_text(self.data.get("start_km")), _km_text(self.data.get("end_km"))
+        if start is not None and end is not None:
+            return f"{kind}[{index}] ({extra}km {start}-{end})"
         return f"{kind}[{index}]" + (f" ({extra.rstrip(', ')})" if extra else "")
 
 
@@ -166,12 +181,11 @@ def _tables(data: Mapping[str, Any], key: str) -> list[Any]:
 
 def _station(index: int, raw: Any) -> Station:
     entry = _Entry(raw, f"stations[{index}]", STATION_KEYS)
-    if isinstance(raw.get("km"), int | float) and not isinstance(raw.get("km"), bool):
-        entry.label = (
-            f"stations[{index}] (id {raw.get('id')!r} {raw.get('name')!r}, km {raw['km']:.3f})"
-        )
+    km = _km_text(raw.get("km"))
+    if km is not None:
+        entry.label = f"stations[{index}] (id {raw.get('id')!r} {raw.get('name')!r}, km {km})"
     entry.check_keys()
-    centre_km = entry.number("km")
+    centre_km = entry.km_post("km")
     return _build(
         entry.label,
         lambda: Station(
@@ -179,8 +193,8 @@ def _station(index: int, raw: Any) -> Station:
             name=entry.string("name"),
             centre_m=km_post_to_m(centre_km),
             loop_length_m=entry.number("loop_length_m"),
-            stop_up_m=km_post_to_m(entry.number("stop_up_km", centre_km)),
-            stop_down_m=km_post_to_m(entry.number("stop_down_km", centre_km)),
+            stop_up_m=km_post_to_m(entry.km_post("stop_up_km", centre_km)),
+            stop_down_m=km_post_to_m(entry.km_post("stop_down_km", centre_km)),
         ),
     )
 
@@ -192,8 +206,8 @@ def _gradient(index: int, raw: Any) -> Gradient:
     return _build(
         entry.label,
         lambda: Gradient(
-            km_post_to_m(entry.number("start_km")),
-            km_post_to_m(entry.number("end_km")),
+            km_post_to_m(entry.km_post("start_km")),
+            km_post_to_m(entry.km_post("end_km")),
             entry.number("permille"),
         ),
     )
@@ -206,8 +220,8 @@ def _curve(index: int, raw: Any) -> Curve:
     return _build(
         entry.label,
         lambda: Curve(
-            km_post_to_m(entry.number("start_km")),
-            km_post_to_m(entry.number("end_km")),
+            km_post_to_m(entry.km_post("start_km")),
+            km_post_to_m(entry.km_post("end_km")),
             entry.number("radius_m"),
         ),
     )
@@ -223,8 +237,8 @@ def _speed_limit(index: int, raw: Any) -> SpeedLimit:
         entry.label,
         lambda: SpeedLimit(
             category=entry.string("category"),
-            start_m=km_post_to_m(entry.number("start_km")),
-            end_m=km_post_to_m(entry.number("end_km")),
+            start_m=km_post_to_m(entry.km_post("start_km")),
+            end_m=km_post_to_m(entry.km_post("end_km")),
             limit_mps=kmh_to_mps(entry.number("limit_kmh")),
             direction=_DIRECTIONS.get(direction),
         ),
@@ -233,15 +247,15 @@ def _speed_limit(index: int, raw: Any) -> SpeedLimit:
 
 def _signal(index: int, raw: Any) -> Signal:
     entry = _Entry(raw, f"signals[{index}]", SIGNAL_KEYS)
-    km = raw.get("km")
-    if isinstance(km, int | float) and not isinstance(km, bool):
-        entry.label = f"signals[{index}] ({raw.get('id')!r}, {raw.get('direction')}, km {km:.3f})"
+    km = _km_text(raw.get("km"))
+    if km is not None:
+        entry.label = f"signals[{index}] ({raw.get('id')!r}, {raw.get('direction')}, km {km})"
     entry.check_keys()
     return _build(
         entry.label,
         lambda: Signal(
             id=entry.string("id"),
-            position_m=km_post_to_m(entry.number("km")),
+            position_m=km_post_to_m(entry.km_post("km")),
             direction=_DIRECTIONS[entry.choice("direction", ("up", "down"))],
             kind=entry.choice("kind", ("home", "exit", "block")),
         ),
@@ -259,8 +273,8 @@ def _block_section(index: int, raw: Any) -> BlockSection:
         lambda: BlockSection(
             id=entry.string("id"),
             direction=_DIRECTIONS[entry.choice("direction", ("up", "down"))],
-            start_m=km_post_to_m(entry.number("start_km")),
-            end_m=km_post_to_m(entry.number("end_km")),
+            start_m=km_post_to_m(entry.km_post("start_km")),
+            end_m=km_post_to_m(entry.km_post("end_km")),
         ),
     )
 
@@ -311,6 +325,8 @@ def parse_line(text: str, source: str = "<string>") -> RailLine:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise LineError("LINE", source, f"valid TOML ({exc})", source=source) from exc
+    except ValueError:  # tomllib's int() of a literal past Python's digit limit
+        raise LineError("LINE", source, f"valid TOML ({TOO_MANY_DIGITS})", source=source) from None
     return line_from_mapping(data, source=source)
 
 

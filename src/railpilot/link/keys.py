@@ -27,6 +27,9 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from railpilot.errors import shown
+from railpilot.textfile import TOO_MANY_DIGITS
+
 from .errors import KeyFileError, LinkConfigError
 
 MIN_KEY_BYTES = 16
@@ -127,7 +130,7 @@ def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") ->
                 store.add_key(train_id, key_id, key)
             except LinkConfigError as exc:
                 raise KeyFileError(
-                    f"{where}: {exc.field} = {exc.value!r}, expected {exc.allowed}"
+                    f"{where}: {exc.field} = {shown(exc.value)}, expected {exc.allowed}"
                 ) from None
         active = entry.get("active_key", min(int(k) for k in keys))
         if type(active) is not int:  # not a bool, a float (inf, 1.0) or a string
@@ -138,7 +141,7 @@ def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") ->
             store.set_active(train_id, active)
         except LinkConfigError:
             raise KeyFileError(
-                f"{where}: active_key {active!r} is not one of its key ids"
+                f"{where}: active_key {shown(active)} is not one of its key ids"
             ) from None
     return store
 
@@ -149,7 +152,7 @@ def _shown(value: object) -> str:
     if value is None:
         return "nothing (the entry is missing)"
     if isinstance(value, bool | int | float):
-        return repr(value).lower() if isinstance(value, bool) else repr(value)
+        return repr(value).lower() if isinstance(value, bool) else shown(value)
     return f"a {type(value).__name__}"
 
 
@@ -176,4 +179,6 @@ def load_key_file(path: str | os.PathLike[str]) -> KeyStore:
     except tomllib.TOMLDecodeError as exc:
         # The TOML error quotes a position, not the content, so it cannot leak a key.
         raise KeyFileError(f"key file {file} is not valid TOML ({exc})") from None
+    except ValueError:  # tomllib's int() of a literal past Python's digit limit
+        raise KeyFileError(f"key file {file} is not valid TOML ({TOO_MANY_DIGITS})") from None
     return parse_key_table(document, str(file))

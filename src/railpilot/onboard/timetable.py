@@ -15,13 +15,12 @@ Sections must chain (each starts where the previous one ended). Errors name the 
 
 from __future__ import annotations
 
-import math
 import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, is_finite_number
 from railpilot.textfile import read_toml
 
 #: the keys of a section, and of the file
@@ -82,7 +81,7 @@ def parse_timetable(data: dict[str, Any], source: str = "<timetable>") -> Timeta
                 raise ConfigError(f"{where}.{key}", value, "a station id (an integer >= 0)")
         time = entry.get("running_time_s")
         if isinstance(time, bool) or not (
-            isinstance(time, int | float) and math.isfinite(time) and 0 < time <= 86_400
+            isinstance(time, int | float) and is_finite_number(time) and 0 < time <= 86_400
         ):
             raise ConfigError(f"{where}.running_time_s", time, "a running time in (0, 86400] s")
         if entry["from"] == entry["to"]:

@@ -65,7 +65,7 @@ from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
 from railpilot.brakes.registry import BRAKES
 from railpilot.eddy.scenario import EddyScenario
-from railpilot.errors import ConfigError, ScenarioError
+from railpilot.errors import ConfigError, ScenarioError, is_finite_number
 from railpilot.scenario.model import (
     CONTROLLERS,
     ATOModel,
@@ -81,7 +81,15 @@ from railpilot.sim.disturbance import Disturbance, Region
 from railpilot.sim.drive_profile import DEFAULT_DX_M, MAX_GRID_POINTS, DriveProfile
 from railpilot.sim.realism import Realism
 from railpilot.sim.reference import BrakingCurve
-from railpilot.units import km_post_to_m, kmh_to_mps, kn_to_n, m_to_km_post, mps_to_kmh, tonne_to_kg
+from railpilot.units import (
+    MAX_KM_POST,
+    km_post_to_m,
+    kmh_to_mps,
+    kn_to_n,
+    m_to_km_post,
+    mps_to_kmh,
+    tonne_to_kg,
+)
 from railpilot.vehicle.line import Line, Segment, Station
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
 
@@ -123,12 +131,7 @@ class _Table:
                 raise ScenarioError(self.key(name), None, "a number (the key is required)")
             return default
         value = self.data[name]
-        if (
-            isinstance(value, bool)
-            or not isinstance(value, int | float)
-            or value != value
-            or value in (float("inf"), float("-inf"))
-        ):
+        if not is_finite_number(value):  # nan, inf, and an int no float holds (10**400)
             raise ScenarioError(self.key(name), value, "a finite number")
         bounds = [
             f"{op} {bound:g}"
@@ -151,6 +154,10 @@ class _Table:
         value = self.data.get(name, default)
         if isinstance(value, bool) or not isinstance(value, int):
             raise ScenarioError(self.key(name), value, "an integer")
+        if not is_finite_number(value):  # 10**400: the brakes' packed parameters are floats
+            raise ScenarioError(
+                self.key(name), value, "an integer a float can hold (below 1.8e308 in size)"
+            )
         return value
 
     def string(self, name: str, default: str, choices: tuple[str, ...] | None = None) -> str:
@@ -180,6 +187,9 @@ class _Table:
             or any(isinstance(v, bool) or not isinstance(v, int | float) for v in value)
         ):
             raise ScenarioError(self.key(name), value, f"a list of {count} numbers")
+        for i, v in enumerate(value):
+            if isinstance(v, int) and not is_finite_number(v):  # 10**400: no float holds it
+                raise ScenarioError(f"{self.key(name)}[{i}]", v, "a finite number")
         return tuple(float(v) for v in value)
 
     def put(
@@ -278,10 +288,6 @@ _FILE_KEYS.update(_brake_file_keys())
 _KM_SPANS = re.compile(r"^(line\.(gradients|curves|speed_limits)|disturbance\.regions)\[\d+\]$")
 #: a speed limit's value in m/s (vehicle/line.py); the file writes limit_kmh
 _LIMITS = re.compile(r"^line\.speed_limits\[\d+\]\.limit$")
-#: Largest km post the file may give, either sign [km]: as line files and the
-#: train-ground link allow (line/model.py MAX_POSITION_M); far beyond it positions lose
-#: their metre resolution, and 1e308 km is no position at all (inf m)
-MAX_KM_POST = 10_000.0
 
 
 def _km_post(t: _Table, name: str) -> float:
@@ -603,6 +609,13 @@ def _ato(t: _Table) -> ATOModel:
     return ato
 
 
+def _holds_huge_int(value: Any) -> bool:
+    """An int no float holds (TOML's ``10**400``), alone or in a list."""
+    if isinstance(value, list):
+        return any(_holds_huge_int(v) for v in value)
+    return isinstance(value, int) and not isinstance(value, bool) and not is_finite_number(value)
+
+
 def _controller(t: _Table) -> ControllerSpec:
     kw: dict[str, Any] = {}
     t.put(kw, "name", "name", read="string")
@@ -612,6 +625,10 @@ def _controller(t: _Table) -> ControllerSpec:
             sub = t.raw(ctrl)
             if not isinstance(sub, Mapping):
                 raise ScenarioError(t.key(ctrl), sub, "a table of controller parameters")
+            for k, v in sub.items():
+                if _holds_huge_int(v):  # the controllers' numpy checks fail on it (TypeError)
+                    what = "a list of finite numbers" if isinstance(v, list) else "a finite number"
+                    raise ScenarioError(f"{t.key(ctrl)}.{k}", v, what)
             params[ctrl] = {
                 k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
                 if isinstance(v, list)
