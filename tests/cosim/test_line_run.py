@@ -233,6 +233,26 @@ def test_bad_scenarios_are_refused_naming_the_field(change, field):
     assert caught.value.field == field
 
 
+@pytest.mark.parametrize(
+    ("event", "message"),
+    [
+        # the ground's own message, once (it was wrapped in a second "is not allowed")
+        ({"limit_kmh": -5}, "events[0].limit_kmh: -5 is not allowed: expected"),
+        # a missing field is said missing (the value shown was the op's, 'tsr_set')
+        ({"reason": None}, "events[0].reason: required: why the restriction is set"),
+        # every op a scenario may give, its own two included
+        ({"op": None}, "events[0].op = None is not allowed: expected one of tsr_set,"),
+        ({"op": "launch"}, "train_failure, ground_restart"),
+    ],
+)
+def test_a_bad_event_is_refused_in_one_plain_sentence(event, message):
+    bad = {k: v for k, v in (BASE["events"][0] | event).items() if v is not None}
+    with pytest.raises(ConfigError) as caught:
+        scenario_from_mapping(BASE | {"events": [bad]})
+    assert message in str(caught.value)
+    assert str(caught.value).count("is not allowed") <= 1
+
+
 def test_a_missing_file_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="SCENARIO"):
         load_scenario(tmp_path / "nope.toml")

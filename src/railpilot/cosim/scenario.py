@@ -65,7 +65,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError, ScenarioError, is_finite_number
-from railpilot.ground.operations import Operation, OperationError, parse_operation
+from railpilot.ground.operations import OPS, Operation, OperationError, parse_operation
 from railpilot.ground.retimer import RetimerSettings
 from railpilot.line.loader import load_line
 from railpilot.line.model import RailLine
@@ -275,12 +275,22 @@ def _events(
                 raise ScenarioError(f"{where}train", train, "the id of a train of the scenario")
             stand = _number(fields, "stand_min", where, 0.0, 24 * 60.0, 10.0)
             action = TrainFailure(int(train), stand * 60.0)
+        elif op not in OPS:
+            raise ScenarioError(
+                f"{where}op",
+                op,
+                f"one of {', '.join((*OPS, TRAIN_FAILURE, GROUND_RESTART))}"
+                + (" (the key is required)" if op is None else ""),
+            )
         else:
             try:
                 action = parse_operation(op, fields, line=line, now_s=epoch_s + at_s)
             except OperationError as error:
-                name, message = next(iter(error.errors.items()))
-                raise ScenarioError(f"{where}{name}", table.get(name, op), message) from None
+                name, why = next(iter(error.errors.items()))
+                refused = ScenarioError(f"{where}{name}", table.get(name), why)
+                # the ground's own message says the value and what is allowed: not again
+                refused.args = (f"{where}{name}: {why}",)
+                raise refused from None
         events.append(ScenarioEvent(at_s, action, str(op), fields))
     return tuple(sorted(events, key=lambda e: e.at_s))
 
