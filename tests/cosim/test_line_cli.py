@@ -71,6 +71,12 @@ def test_simulate_prints_the_kpis(tmp_path, capsys):
     events = json.loads((tmp_path / "events.json").read_text())
     assert events["run"]["driver"] == "advised"
     assert events["baseline"]["driver"] == "baseline"
+    # without a baseline: the run's rows and events alone
+    alone = tmp_path / "alone"
+    assert main(["line", "simulate", str(path), "--no-baseline", "--out", str(alone)]) == 0
+    assert json.loads((alone / "events.json").read_text())["driver"] == "advised"
+    with (alone / "sections.csv").open(newline="") as f:
+        assert [r["driver"] for r in csv.DictReader(f)] == ["advised"]
 
 
 @pytest.mark.parametrize(

@@ -305,7 +305,7 @@ def _write_run(
     pd.concat([trace_table(r) for r in runs], ignore_index=True).to_csv(trace, index=False)
     pd.concat([section_table(r) for r in runs], ignore_index=True).to_csv(sections, index=False)
     documents = [events_document(r) for r in runs]
-    both = {"run": documents[0], "baseline": documents[1]} if baseline else documents[0]
+    both = documents[0] if baseline is None else {"run": documents[0], "baseline": documents[1]}
     events.write_text(json_text(both), encoding="utf-8")
     kpis.write_text(json_text({**out, "files": files}), encoding="utf-8")
     return files
