@@ -151,12 +151,15 @@ def test_key_that_does_not_apply_exits_2(capsys, tmp_path):
     assert out == ""
 
 
-@pytest.mark.parametrize("runs", ["0", "-3"])
-def test_bad_run_count_exits_2(capsys, runs):
-    code = main(["montecarlo", str(EXAMPLE), "--runs", runs, "--json", "--no-progress"])
+@pytest.mark.parametrize(("option", "value"), [("--runs", "0"), ("--runs", "-3"), ("--seed", "-5")])
+def test_bad_run_count_or_seed_exits_2_naming_the_option_once(capsys, option, value):
+    code = main(["montecarlo", str(EXAMPLE), option, value, "--json", "--no-progress"])
     out, err = capsys.readouterr()
     assert code == 2
-    assert "montecarlo.runs" in err
+    # the option as given, in one sentence (it was "--runs/--seed = (0, None) is not
+    # allowed: expected montecarlo.runs = 0 is not allowed: expected ...")
+    assert f"{option} = {value} is not allowed: expected an integer" in err
+    assert err.count("is not allowed") == 1
     assert out == ""
 
 

@@ -47,7 +47,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    from railpilot.errors import ScenarioError
+    from railpilot.errors import ConfigError, ScenarioError
     from railpilot.scenario.loader import load_scenario_and_spec
     from railpilot.scenario.montecarlo import MonteCarloSpec
     from railpilot.sim.batch import check_spec, freeze_ato, run_montecarlo
@@ -55,13 +55,13 @@ def run(args: argparse.Namespace) -> int:
 
     scenario, spec = load_scenario_and_spec(args.scenario)
     spec = spec or MonteCarloSpec()
-    try:
-        if args.runs is not None:
-            spec = replace(spec, runs=args.runs)
-        if args.seed is not None:
-            spec = replace(spec, seed=args.seed)
-    except ValueError as exc:  # ConfigError from the spec's own checks
-        raise ScenarioError("--runs/--seed", (args.runs, args.seed), str(exc)) from exc
+    for option, key, value in (("--runs", "runs", args.runs), ("--seed", "seed", args.seed)):
+        if value is None:
+            continue
+        try:
+            spec = replace(spec, **{key: value})
+        except ConfigError as exc:  # the spec's own check, named as the option given
+            raise ScenarioError(option, value, exc.allowed) from None
     controllers = args.controller or [scenario.controller.name]
     check_spec(scenario, spec)
     for name in controllers:
