@@ -4,7 +4,8 @@ Playwright's sync API (tests/web/, the dashboard in Debian's chromium) leaves an
 marked as running in the main thread for the rest of the session, after which
 ``asyncio.run`` fails in every later test. The browser tests therefore run last, whatever
 order the test paths are given in (``pytest tests/web tests/net`` would otherwise break
-tests/net).
+tests/net). Under pytest-xdist (``make test``: ``-n auto``) each worker is handed the
+items in this order, so on each worker too the browser tests come after the rest.
 """
 
 from __future__ import annotations
