@@ -35,3 +35,46 @@ def test_finite_ints_and_floats_are_numbers(value):
 )
 def test_nan_inf_bools_and_non_numbers_are_not(value):
     assert not is_finite_number(value)
+
+
+# --- values in messages ---------------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("value", "length"),
+    [("x" * 5000, 5002), (list(range(3000)), 16890), (b"\x01" * 2000, 8003)],
+)
+def test_a_long_value_is_shown_by_its_start_and_its_length(value, length):
+    from railpilot.errors import MAX_SHOWN_CHARS, ConfigError
+    from railpilot.link.errors import LinkConfigError
+
+    assert len(repr(value)) == length
+    for error in (ConfigError("name", value, "a name"), LinkConfigError("name", value, "a name")):
+        text = str(error)
+        assert f"... ({length:,} characters) is not allowed" in text
+        assert repr(value)[:100] in text
+        assert len(text) < MAX_SHOWN_CHARS + 120
+
+
+def test_a_short_value_is_shown_whole():
+    from railpilot.errors import ConfigError
+
+    value = "y" * 150
+    assert (
+        str(ConfigError("name", value, "a name"))
+        == f"name = {value!r} is not allowed: expected a name"
+    )
+
+
+def test_an_operations_long_text_is_cut_and_a_long_number_written_short():
+    from railpilot.ground.operations import OperationError, parse_operation
+    from railpilot.line.loader import load_line
+
+    line = load_line("metro")
+    fields = {"start_km": "1" + "0" * 400, "end_km": 16.0, "limit_kmh": 40, "reason": "r" * 3000}
+    fields["valid_until_min"] = 60
+    with pytest.raises(OperationError) as caught:
+        parse_operation("tsr_set", fields, line=line, now_s=0.0)
+    errors = caught.value.errors
+    assert errors["start_km"].startswith("1.000e+400 is not allowed")
+    assert "(3,002 characters)" in errors["reason"] and len(errors["reason"]) < 400

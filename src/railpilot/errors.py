@@ -60,12 +60,29 @@ class LineError(ConfigError):
             self.args = (f"{source}: {self.args[0]}",)
 
 
+#: longest value an error message quotes whole [characters]; a longer one is cut, and
+#: its length said (a 10,000-character string or list in a file is a mistake to point at,
+#: not to print)
+MAX_SHOWN_CHARS = 200
+
+
 def shown(value: object) -> str:
     """``repr(value)`` for an error message, every integer of more than 30 digits in it
-    written as ``1.000e+400``: TOML integers are unbounded, and an error must stay readable."""
+    written as ``1.000e+400``: TOML integers are unbounded, and an error must stay readable;
+    and cut to :data:`MAX_SHOWN_CHARS`."""
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
         return f"{Decimal(value):.3e}"  # also past repr's limit of 4300 digits
-    return _shorter_numbers(repr(value))
+    return readable(repr(value))
+
+
+def readable(text: str) -> str:
+    """A value written out, for an error message: every run of more than 30 digits as
+    ``1.000e+400``, and only its start and its length if longer than
+    :data:`MAX_SHOWN_CHARS`."""
+    text = _shorter_numbers(text)
+    if len(text) > MAX_SHOWN_CHARS:
+        return f"{text[: MAX_SHOWN_CHARS - 40]}... ({len(text):,} characters)"
+    return text
 
 
 def _shorter_numbers(text: str) -> str:

@@ -34,7 +34,7 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from railpilot.errors import ConfigError, RailpilotError, is_finite_number, shown
+from railpilot.errors import ConfigError, RailpilotError, is_finite_number, readable, shown
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link.messages import U32_MAX, TargetReason, TravelDirection
 from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post, mps_to_kmh
@@ -158,7 +158,11 @@ OPS = tuple(FIELDS)
 
 def _show(value: object) -> str:
     """A value as the dispatcher typed it: a number as is (a form and the CLI send text),
-    other text quoted."""
+    other text quoted; readable however long (errors.readable)."""
+    return readable(_as_typed(value))
+
+
+def _as_typed(value: object) -> str:
     if isinstance(value, str):
         try:
             float(value)

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
-from railpilot.errors import RailpilotError
+from railpilot.errors import RailpilotError, shown
 
 from .checks import Check
 
@@ -173,7 +173,7 @@ class LinkConfigError(LinkError, ValueError):
         self.allowed = allowed
         # a tool that is no endpoint (the proxy) says what did not happen to it instead
         ending = self.what_next if what_next is None else what_next
-        super().__init__(f"{field} = {value!r} is not allowed: expected {allowed}; {ending}")
+        super().__init__(f"{field} = {shown(value)} is not allowed: expected {allowed}; {ending}")
 
 
 class KeyFileError(LinkError):
