@@ -128,6 +128,32 @@ def test_line_run_refuses_bad_arguments_before_starting_anything(
     assert not (tmp_path / "x.png").exists()
 
 
+def test_line_run_writes_the_runs_files_as_simulate_does(tmp_path, capsys, monkeypatch):
+    # the live run itself is tests/cosim/test_live.py's; here, what the command does with
+    # the LineResult it returns (a co-simulated one stands in for it)
+    import railpilot.cosim.live as live
+    from railpilot.cosim.line_run import run_line
+    from railpilot.cosim.scenario import load_scenario
+
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    result = run_line(load_scenario(path))
+    monkeypatch.setattr(live, "run_live", lambda *args, **kwargs: result)
+    folder = tmp_path / "live"
+    assert main(["line", "run", str(path), "--json", "--out", str(folder)]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert json.loads((folder / "kpis.json").read_text()) == out
+    assert [p.rsplit("/", 1)[1] for p in out["files"]] == [
+        "time_distance.png",
+        "trace.csv",
+        "sections.csv",
+        "events.json",
+        "kpis.json",
+    ]
+    with (folder / "sections.csv").open(newline="") as f:
+        assert [r["driver"] for r in csv.DictReader(f)] == ["advised"]
+
+
 @pytest.mark.parametrize("seed", [-1, 2**63, True, 1.0])
 def test_live_options_refuse_a_seed_out_of_range(tmp_path, seed):
     from railpilot.cosim.live import LiveOptions

@@ -93,6 +93,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument(
         "--screenshot-at-min", type=float, help="when to take it [simulated min] (default: mid-run)"
     )
+    p.add_argument(
+        "--out",
+        type=out_dir_argument,
+        help="folder for the run's files, as `line simulate --out` writes them "
+        "(time_distance.png, trace.csv, sections.csv, events.json, kpis.json)",
+    )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run_live_command)
 
@@ -140,6 +146,8 @@ def run_live_command(args: argparse.Namespace) -> int:
     )
     result = run_live(args.scenario, options)
     out = result.kpis()
+    if args.out is not None:
+        out["files"] = _write_run(args.out, out, result, None)
     if args.json:
         print_json(out)
     else:
