@@ -153,6 +153,9 @@ CASES = [
         [{"start_km": 1.0, "end_km": FAR, "radius_m": 800.0}],
         "line.curves[0].end_km",
     ),
+    # a reference that comes to rest beyond any line (km 2e8): it ran and never stopped
+    ("paper002_qsmc_stop", ("reference", "decel_mps2"), 1e-9, "reference.decel_mps2"),
+    ("paper000_smarc_ep", ("reference", "start_km"), 9_999.9, "reference.decel_mps2"),
 ]
 
 

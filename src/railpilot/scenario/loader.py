@@ -478,6 +478,17 @@ def _reference(t: _Table, line: Line, train: Train) -> BrakingCurve | DriveProfi
         t.put(kw, "ease_out", "ease_out", read="flag")
         spec = _build("reference", lambda: SmoothStopSpec(**kw))
     curve = _build("reference", spec.build)
+    stop_km = m_to_km_post(curve.stop_m)
+    if not -MAX_KM_POST <= stop_km <= MAX_KM_POST:
+        # a deceleration this small stops the reference beyond any line: the run would
+        # simply never stop, and its stop error would be no number
+        raise ScenarioError(
+            t.key("decel_mps2"),
+            spec.decel_mps2,
+            f"a deceleration that brings the reference to rest within km +-{MAX_KM_POST:g} "
+            f"(from km {m_to_km_post(curve.start_m):g} at {mps_to_kmh(curve.v0_mps):g} km/h "
+            f"it comes to rest at km {stop_km:.4g})",
+        )
     t.done()
     return curve
 
