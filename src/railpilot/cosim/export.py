@@ -120,15 +120,13 @@ def events_document(result: LineResult) -> dict[str, Any]:
     """What happened on the line besides the trains' motion: the scenario's events as
     played, the ground's restarts and re-timings, and every TSR violation, signal passed
     at red and overspeed the trackside saw (each with its time and train)."""
-    epoch = result.scenario.epoch_s
     return {
         "scenario": result.scenario.name,
         "seed": result.seed,
         "driver": _driver(result),
         "events": result.events,
         "ground_restarts": result.restarts,
-        # the ground's log keeps its own clock's times: the run's here, as everywhere else
-        "retiming": [{**e, "t_s": e["t_s"] - epoch} for e in result.retiming],
+        "retiming": result.retimings(),
         "tsr_violations": result.tsr_violations,
         "signals_passed_at_red": result.signals_passed_at_red,
         "overspeeds": result.overspeeds,

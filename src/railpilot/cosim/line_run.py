@@ -157,6 +157,13 @@ class LineResult:
         """Simulated time run [s]: the scenario's duration, or ``until_s`` if shorter."""
         return self.end_s if self.end_s is not None else self.scenario.duration_s
 
+    def retimings(self) -> list[dict[str, Any]]:
+        """The ground's re-timings with their times on the run's clock, as every other
+        time of the results (``retiming`` keeps the ground's log as it is, on its own
+        clock, ``scenario.epoch_s`` on)."""
+        epoch = self.scenario.epoch_s
+        return [{**e, "t_s": e["t_s"] - epoch} for e in self.retiming]
+
     def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
         """The KPI object of ``railpilot line simulate --json`` (module docstring)."""
         trains: dict[str, Any] = {}
@@ -233,7 +240,7 @@ class LineResult:
                 1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
             ),
             "link": self.link,
-            "retiming": _retiming_summary(self.retiming, self.scenario.epoch_s),
+            "retiming": _retiming_summary(self.retimings()),
             "ground_restarts": self.restarts,
             "wall_s": round(self.wall_s, 3),
             **({"live": self.live} if self.live is not None else {}),
@@ -259,11 +266,10 @@ class LineResult:
         return out
 
 
-def _retiming_summary(log: list[dict[str, Any]], epoch_s: float) -> dict[str, Any]:
-    """The ground's re-timings: how many, how solved, who was sent new times, and what
-    the solver expected (lateness at the destinations [s], fixed plan against re-timed).
-    Their times are the run's, as every other time of the KPIs (the ground's log keeps its
-    own clock's, ``epoch_s`` on)."""
+def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
+    """The ground's re-timings (``LineResult.retimings``): how many, how solved, who was
+    sent new times, and what the solver expected (lateness at the destinations [s], fixed
+    plan against re-timed)."""
     solved = [e for e in log if "lateness_s" in e]
     return {
         "runs": len(solved),
@@ -272,7 +278,7 @@ def _retiming_summary(log: list[dict[str, Any]], epoch_s: float) -> dict[str, An
         "messages_sent": sum(len(e.get("sent_to", ())) for e in solved),
         "log": [
             {
-                "t_s": round(e["t_s"] - epoch_s, 1),
+                "t_s": round(e["t_s"], 1),
                 "trigger": e["trigger"],
                 "status": e["status"],
                 "trains": e["trains"],

@@ -42,7 +42,7 @@ from railpilot.sim.inputs import (
     run_inputs,
 )
 from railpilot.sim.layout import LineIn, ReferenceIn, RunInputs, RunState, batch_row, stack_runs
-from railpilot.sim.run import check_commands, metrics_dict, resolve_controller
+from railpilot.sim.run import check_commands, metrics_dict, resolve_controller, run_from_start
 from railpilot.sim.sweep import VARIABLE_PARAMETERS, MonteCarloSpec
 from railpilot.units import kmh_to_mps, tonne_to_kg
 
@@ -247,15 +247,7 @@ def _state_at_failure(
     the same run to the bit (a run depends only on its row)."""
 
     def state_of(i: int) -> RunState:
-        row = batch_row(batch, i)
-        state = engine.fresh_state(row)
-        empty = np.zeros((0, engine.N_CHANNELS))
-        metrics = np.zeros(engine.N_METRICS)
-        with binding:
-            engine.run_kernel(
-                row, binding.step, brake_step, empty, 1, metrics, state, row.sim.n_steps
-            )
-        return state
+        return run_from_start(batch_row(batch, i), binding, brake_step)[1]
 
     return state_of
 

@@ -164,14 +164,29 @@ def run_once(
     n = inp.sim.n_steps
     n_rec = (n + record_every - 1) // record_every if record_every > 0 else 0
     record = np.zeros((n_rec, engine.N_CHANNELS))
+    metrics, state = run_from_start(inp, binding, brake_step, record, max(record_every, 1))
+    check_commands(binding, metrics, lambda _run: state)
+    return metrics, record
+
+
+def run_from_start(
+    inp: RunInputs,
+    binding: Binding,
+    brake_step: Any,
+    record: np.ndarray | None = None,
+    record_every: int = 1,
+) -> tuple[np.ndarray, RunState]:
+    """One run of ``inp`` from its start to where the loop ends it, recording into
+    ``record`` (None: nothing): its metrics and its state there, unchecked (a caller
+    checks the commands, :func:`check_commands`)."""
+    record = np.zeros((0, engine.N_CHANNELS)) if record is None else record
     metrics = np.zeros(engine.N_METRICS)
     state = engine.fresh_state(inp)
     with binding:
         engine.run_kernel(
-            inp, binding.step, brake_step, record, max(record_every, 1), metrics, state, n
+            inp, binding.step, brake_step, record, record_every, metrics, state, inp.sim.n_steps
         )
-    check_commands(binding, metrics, lambda _run: state)
-    return metrics, record
+    return metrics, state
 
 
 def check_commands(
