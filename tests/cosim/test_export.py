@@ -105,3 +105,12 @@ def test_the_events_are_on_the_runs_clock_and_are_json(run) -> None:  # type: ig
     assert_allclose(logged, np.round(times[: len(logged)], 1), atol=0.051)
     # the log in the result keeps the ground's own times
     assert run.retiming[0]["t_s"] - run.scenario.epoch_s == pytest.approx(times[0])
+    # the TSR's validity, as the ground answered it, on the run's clock too: from when it
+    # was set (10 min) for the 80 minutes the scenario gives (operations count from now)
+    (tsr_set,) = [e for e in document["events"] if e["event"] == "tsr_set"]
+    assert tsr_set["t_s"] == pytest.approx(600.0)
+    assert tsr_set["result"]["valid_from_s"] == pytest.approx(600.0)
+    assert tsr_set["result"]["valid_until_s"] == pytest.approx(5400.0)
+    assert tsr_set["tsr"]["from_s"] == tsr_set["result"]["valid_from_s"]
+    (kept,) = [e for e in run.events if e["event"] == "tsr_set"]
+    assert kept["result"]["valid_from_s"] == pytest.approx(run.scenario.epoch_s + 600.0)

@@ -124,7 +124,7 @@ def events_document(result: LineResult) -> dict[str, Any]:
         "scenario": result.scenario.name,
         "seed": result.seed,
         "driver": _driver(result),
-        "events": result.events,
+        "events": result.events_on_run_clock(),
         "ground_restarts": result.restarts,
         "retiming": result.retimings(),
         "tsr_violations": result.tsr_violations,

@@ -70,6 +70,9 @@ WATCH_S = 1.0
 POWER_ON_LEAD_S = 120.0
 #: a dispatcher's operation that finds the ground down is tried again this much later [s]
 RETRY_WHILE_DOWN_S = 10.0
+#: the keys of a dispatcher's operation's answer that are times on the ground's clock [s
+#: since its epoch] (ground/dispatch.py: a TSR set answers when it holds)
+GROUND_CLOCK_KEYS = frozenset({"valid_from_s", "valid_until_s"})
 #: punctuality: an arrival at most this many minutes after the timetable is on time (one
 #: share each; an early arrival is on time)
 ON_TIME_WITHIN_MIN = (1, 3, 5)
@@ -163,6 +166,24 @@ class LineResult:
         clock, ``scenario.epoch_s`` on)."""
         epoch = self.scenario.epoch_s
         return [{**e, "t_s": e["t_s"] - epoch} for e in self.retiming]
+
+    def events_on_run_clock(self) -> list[dict[str, Any]]:
+        """The scenario's events as played, with the times of the ground's answers on the
+        run's clock, as every other time of the results (``events`` keeps each answer as
+        the ground gave it: a TSR's ``valid_from_s``/``valid_until_s`` on its own clock,
+        ``scenario.epoch_s`` on)."""
+        epoch = self.scenario.epoch_s
+        played = []
+        for entry in self.events:
+            answer = entry.get("result")
+            if answer is not None:
+                answer = {
+                    key: value - epoch if key in GROUND_CLOCK_KEYS and value is not None else value
+                    for key, value in answer.items()
+                }
+                entry = {**entry, "result": answer}
+            played.append(entry)
+        return played
 
     def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
         """The KPI object of ``railpilot line simulate --json`` (module docstring)."""
