@@ -78,3 +78,17 @@ def test_an_operations_long_text_is_cut_and_a_long_number_written_short():
     errors = caught.value.errors
     assert errors["start_km"].startswith("1.000e+400 is not allowed")
     assert "(3,002 characters)" in errors["reason"] and len(errors["reason"]) < 400
+
+
+def test_a_container_holding_a_number_past_reprs_limit_is_named_not_written():
+    """repr refuses an int of more than 4,300 digits: shown says what the value is."""
+    from railpilot.errors import ConfigError, shown
+
+    huge = 10**5000
+    assert shown(huge) == "1.000e+5000"
+    assert shown([1, huge]) == "<a list holding a number too long to write out>"
+    text = str(ConfigError("train.davis", (huge, 0), "three numbers"))
+    assert text == (
+        "train.davis = <a tuple holding a number too long to write out> is not allowed: "
+        "expected three numbers"
+    )

@@ -72,7 +72,10 @@ def shown(value: object) -> str:
     and cut to :data:`MAX_SHOWN_CHARS`."""
     if isinstance(value, int) and not isinstance(value, bool) and abs(value) >= 10**30:
         return f"{Decimal(value):.3e}"  # also past repr's limit of 4300 digits
-    return readable(repr(value))
+    try:
+        return readable(repr(value))
+    except ValueError:  # a container holding an int past repr's limit of 4300 digits
+        return f"<a {type(value).__name__} holding a number too long to write out>"
 
 
 def readable(text: str) -> str:

@@ -42,7 +42,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt, check_limits
+from railpilot.control.base import Controller, check_count, check_dt, check_limits, check_number
 from railpilot.control.pid import (
     MODE_CLAMP,
     P_HI,
@@ -130,6 +130,10 @@ def trimf(x: float, a: float, b: float, c: float) -> float:
     return (c - x) / (c - b)
 
 
+#: most points of the discretised output universe (every update sums over all of them)
+MAX_N_GRID = 10_000
+
+
 def pack_fis(
     in1_abc: np.ndarray,
     in2_abc: np.ndarray,
@@ -143,8 +147,7 @@ def pack_fis(
     n1, n2, n_out = len(in1_abc), len(in2_abc), len(out_abc)
     if rules.shape != (n1, n2):
         raise ValueError(f"rules shape {rules.shape} != ({n1}, {n2})")
-    if n_grid < 3:
-        raise ValueError(f"n_grid = {n_grid} is not allowed: expected >= 3")
+    n_grid = check_count("n_grid", n_grid, 3, MAX_N_GRID)
     grid = np.linspace(out_lo, out_hi, n_grid)
     table = np.array([[trimf(y, *abc) for y in grid] for abc in out_abc])
     return np.concatenate(
@@ -288,20 +291,6 @@ def fuzzy_pi_step(
     return out
 
 
-def _check_positive(name: str, value: float) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value > 0.0):
-        raise ValueError(f"{name} = {value!r} is not allowed: expected a finite number > 0")
-    return value
-
-
-def _check_non_negative(name: str, value: float) -> float:
-    value = float(value)
-    if not (np.isfinite(value) and value >= 0.0):
-        raise ValueError(f"{name} = {value!r} is not allowed: expected a finite number >= 0")
-    return value
-
-
 class _FuzzyBase(Controller):
     """Shared input stage (error, filtered error rate, scaling) of both fuzzy controllers."""
 
@@ -324,11 +313,12 @@ class _FuzzyBase(Controller):
         out_scale: float,
         output_limits: tuple[float | None, float | None],
     ) -> np.ndarray:
+        """The shared head of ``params``; ``out_scale`` checked by the caller."""
         low, high = check_limits(output_limits)
         head = np.zeros(F_FIS_OFF)
-        head[F_E_SCALE] = _check_positive("e_scale", e_scale)
-        head[F_CE_SCALE] = _check_positive("ce_scale", ce_scale)
-        head[F_TAU_CE] = _check_non_negative("ce_filter_s", ce_filter_s)
+        head[F_E_SCALE] = check_number("e_scale", e_scale, positive=True)
+        head[F_CE_SCALE] = check_number("ce_scale", ce_scale, positive=True)
+        head[F_TAU_CE] = check_number("ce_filter_s", ce_filter_s, minimum=0.0, unit="s")
         head[F_OUT_SCALE] = out_scale
         head[F_LO] = low
         head[F_HI] = high
@@ -367,7 +357,9 @@ class FuzzyController(_FuzzyBase):
         n_grid: int = 51,
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
+        u_scale = check_number("u_scale", u_scale, positive=True)
         head = self._header(e_scale, ce_scale, ce_filter_s, u_scale, output_limits)
+        n_grid = check_count("n_grid", n_grid, 3, MAX_N_GRID)
         sets = triangles(-1.0, 1.0, 4)
         self.fis = pack_fis(sets, sets, rule_indices(RULES_FUZZY, SETS4), sets, -1.0, 1.0, n_grid)
         self.n_grid = n_grid
@@ -420,14 +412,12 @@ class FuzzyPI(_FuzzyBase):
         n_grid: int = 51,
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
+        kp1 = check_number("kp1", kp1, minimum=0.0)
+        ki1 = check_number("ki1", ki1, minimum=0.0)
+        kp_span = check_number("kp_span", kp_span, minimum=0.0)
+        ki_span = check_number("ki_span", ki_span, minimum=0.0)
         head = self._header(e_scale, ce_scale, ce_filter_s, kp_span, output_limits)
-        for label, value in (
-            ("kp1", kp1),
-            ("ki1", ki1),
-            ("kp_span", kp_span),
-            ("ki_span", ki_span),
-        ):
-            _check_non_negative(label, value)
+        n_grid = check_count("n_grid", n_grid, 3, MAX_N_GRID)
         head[F_KP1] = kp1
         head[F_KI1] = ki1
         head[F_KI_SPAN] = ki_span

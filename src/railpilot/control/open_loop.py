@@ -14,7 +14,7 @@ from typing import ClassVar
 import numpy as np
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt
+from railpilot.control.base import Controller, check_dt, check_number
 
 O_LEVEL = 0
 N_OPEN_PARAMS = 1
@@ -38,10 +38,7 @@ class OpenLoop(Controller):
     name: ClassVar[str] = "open_loop"
 
     def __init__(self, level: float) -> None:
-        level = float(level)
-        if not np.isfinite(level):
-            raise ValueError(f"level = {level!r} is not allowed: expected a finite number")
-        self.params = np.array([level])
+        self.params = np.array([check_number("level", level)])
         self.state = np.zeros(N_OPEN_STATE)
 
     @property
@@ -53,9 +50,10 @@ class OpenLoop(Controller):
 
     def update(self, setpoint: float, measurement: float, dt: float) -> float:
         """Return the command for this sample; ``dt`` [s] since the previous one."""
-        check_dt(dt)
         return float(
-            open_loop_step(self.params, self.state, float(setpoint), float(measurement), dt)
+            open_loop_step(
+                self.params, self.state, float(setpoint), float(measurement), check_dt(dt)
+            )
         )
 
     @property

@@ -14,12 +14,14 @@ the same as simple-pid's (checked in tests/control/test_pid.py).
 
 from __future__ import annotations
 
+import math
 from typing import Any, Literal
 
 import numpy as np
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt, check_limits
+from railpilot.control.base import Controller, check_dt, check_limits, check_number
+from railpilot.errors import shown
 
 # params layout
 P_KP, P_KI, P_KD, P_TF, P_LO, P_HI, P_MODE, P_KAW, P_DMEAS = range(9)
@@ -79,12 +81,6 @@ def pid_step(
     return output
 
 
-def _finite_number(value: object) -> bool:
-    return (
-        isinstance(value, int | float) and not isinstance(value, bool) and bool(np.isfinite(value))
-    )
-
-
 class PID(Controller):
     """Parallel-form PID.
 
@@ -120,25 +116,30 @@ class PID(Controller):
         derivative_on: Literal["measurement", "error"] = "measurement",
     ) -> None:
         low, high = check_limits(output_limits)
-        if not _finite_number(derivative_filter_s) or derivative_filter_s < 0:
+        derivative_filter_s = check_number(
+            "derivative_filter_s", derivative_filter_s, minimum=0.0, unit="s"
+        )
+        if not (isinstance(anti_windup, str) and anti_windup in ("clamp", "backcalc")):
             raise ValueError(
-                f"derivative_filter_s = {derivative_filter_s!r} is not allowed: "
-                "expected a finite number >= 0 [s]"
+                f"anti_windup = {shown(anti_windup)} is not allowed: expected 'clamp' or 'backcalc'"
             )
-        if anti_windup not in ("clamp", "backcalc"):
+        if not (isinstance(derivative_on, str) and derivative_on in ("measurement", "error")):
             raise ValueError(
-                f"anti_windup = {anti_windup!r} is not allowed: expected 'clamp' or 'backcalc'"
-            )
-        if derivative_on not in ("measurement", "error"):
-            raise ValueError(
-                f"derivative_on = {derivative_on!r} is not allowed: "
+                f"derivative_on = {shown(derivative_on)} is not allowed: "
                 "expected 'measurement' or 'error'"
             )
-        for label, gain in (("kp", kp), ("ki", ki), ("kd", kd)):
-            if not _finite_number(gain):
-                raise ValueError(f"{label} = {gain!r} is not allowed: expected a finite number")
+        kp = check_number("kp", kp)
+        ki = check_number("ki", ki)
+        kd = check_number("kd", kd)
         if backcalc_gain is None:
             backcalc_gain = ki / kp if (kp != 0 and ki != 0) else 1.0
+            if not math.isfinite(backcalc_gain):
+                raise ValueError(
+                    f"backcalc_gain = None is not allowed with ki = {ki!r}, kp = {kp!r}: its "
+                    "default ki / kp is no finite number; give a finite number >= 0 [1/s]"
+                )
+        else:
+            backcalc_gain = check_number("backcalc_gain", backcalc_gain, minimum=0.0, unit="1/s")
         self.params = np.zeros(N_PARAMS)
         self.params[P_KP] = kp
         self.params[P_KI] = ki
@@ -201,11 +202,7 @@ class TrackingPID(PID):
         **kwargs: Any,
     ) -> None:
         super().__init__(kp, ki, kd, **kwargs)
-        if not (_finite_number(position_gain) and position_gain >= 0):
-            raise ValueError(
-                f"position_gain = {position_gain!r} is not allowed: "
-                "expected a finite number >= 0 [1/s]"
-            )
+        position_gain = check_number("position_gain", position_gain, minimum=0.0, unit="1/s")
         self.params = np.append(self.params, position_gain)
 
     def update(self, setpoint: Any, measurement: Any, dt: float) -> float:

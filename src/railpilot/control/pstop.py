@@ -60,8 +60,9 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt, check_limits
-from railpilot.control.qsmc import _actuator_advance, _actuator_apply, _actuator_factors, _check
+from railpilot.control.base import Controller, check_dt, check_limits, check_number, check_pair
+from railpilot.control.qsmc import _actuator_advance, _actuator_apply, _actuator_factors
+from railpilot.errors import shown
 from railpilot.interp import interp_at
 
 # params layout
@@ -443,41 +444,36 @@ class PredictiveStop(Controller):
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
         low, high = check_limits(output_limits)
-        sigma_track = sigma if sigma_track is None else sigma_track
-        tau_track = tau if tau_track is None else tau_track
-        sigma_release = sigma if sigma_release is None else sigma_release
-        tau_release = tau if tau_release is None else tau_release
-        for label, value in (
-            ("sigma", sigma),
-            ("tau", tau),
-            ("sigma_track", sigma_track),
-            ("tau_track", tau_track),
-            ("sigma_release", sigma_release),
-            ("tau_release", tau_release),
-            ("d_max", d_max),
-            ("a_on", a_on),
-            ("stop_decel", stop_decel),
-            ("fast_limit", fast_limit),
-            ("fast_full_mps", fast_full_mps),
-            ("fast_zero_mps", fast_zero_mps),
-        ):
-            _check(label, value)
-        _check("speed_gain", speed_gain, positive=True)
-        _check("observer_gain", observer_gain, positive=True)
+        sigma = check_number("sigma", sigma, minimum=0.0, unit="s")
+        tau = check_number("tau", tau, minimum=0.0, unit="s")
+        # None: the slow path's
+        sigma_track = sigma if sigma_track is None else _seconds("sigma_track", sigma_track)
+        tau_track = tau if tau_track is None else _seconds("tau_track", tau_track)
+        sigma_release = sigma if sigma_release is None else _seconds("sigma_release", sigma_release)
+        tau_release = tau if tau_release is None else _seconds("tau_release", tau_release)
+        d_max = check_number("d_max", d_max, minimum=0.0, unit="m/s^2")
+        a_on = check_number("a_on", a_on, minimum=0.0, unit="m/s^2")
+        stop_decel = check_number("stop_decel", stop_decel, minimum=0.0, unit="m/s^2")
+        fast_limit = check_number("fast_limit", fast_limit, minimum=0.0, unit="m/s^2")
+        fast_full_mps = check_number("fast_full_mps", fast_full_mps, minimum=0.0, unit="m/s")
+        fast_zero_mps = check_number("fast_zero_mps", fast_zero_mps, minimum=0.0, unit="m/s")
+        speed_gain = check_number("speed_gain", speed_gain, positive=True)
+        observer_gain = check_number("observer_gain", observer_gain, positive=True)
         if not fast_zero_mps <= fast_full_mps:
             raise ValueError(
                 f"fast_zero_mps = {fast_zero_mps!r} is not allowed with fast_full_mps = "
                 f"{fast_full_mps!r}: expected fast_zero_mps <= fast_full_mps"
             )
-        if not (math.isnan(stop_m) or math.isfinite(stop_m)):
-            raise ValueError(f"stop_m = {stop_m!r} is not allowed: expected a finite number [m]")
+        stop_m = check_number("stop_m", stop_m, unit="m", allow_nan=True)
         line_x, line_r = _line_profile(line_profile)
-        if not all(math.isfinite(c) for c in davis_mps2) or len(davis_mps2) != 3:
-            raise ValueError(
-                f"davis_mps2 = {davis_mps2!r} is not allowed: expected three finite numbers"
+        davis = [
+            check_number(f"davis_mps2[{i}]", c)
+            for i, c in enumerate(
+                check_pair("davis_mps2", davis_mps2, 3, "three finite numbers (c0, c1, c2) [m/s^2]")
             )
+        ]
         self.params = np.zeros(N_PARAMS + 2 * line_x.size)
-        self.params[P_DAVIS0 : P_DAVIS2 + 1] = davis_mps2
+        self.params[P_DAVIS0 : P_DAVIS2 + 1] = davis
         self.params[P_N_LINE] = line_x.size
         self.params[N_PARAMS : N_PARAMS + line_x.size] = line_x
         self.params[N_PARAMS + line_x.size :] = line_r
@@ -559,6 +555,11 @@ def retarget(params: np.ndarray, state: np.ndarray, stop_m: float) -> None:
     state[S_X_STOP] = math.nan
 
 
+def _seconds(name: str, value: object) -> float:
+    """A delay or lag [s] of the brake model: a finite number >= 0."""
+    return check_number(name, value, minimum=0.0, unit="s")
+
+
 def _line_profile(
     profile: tuple[npt.ArrayLike, npt.ArrayLike] | None,
 ) -> tuple[np.ndarray, np.ndarray]:
@@ -567,11 +568,10 @@ def _line_profile(
     if profile is None:
         return np.zeros(0), np.zeros(0)
     try:
-        xs = np.asarray(profile[0], dtype=float)
-        rs = np.asarray(profile[1], dtype=float)
-    except (TypeError, ValueError, IndexError) as exc:
+        xs, rs = (np.asarray(part, dtype=float) for part in check_pair("line_profile", profile))
+    except (TypeError, ValueError, OverflowError) as exc:
         raise ValueError(
-            f"line_profile = {profile!r} is not allowed: expected (positions, values)"
+            f"line_profile = {shown(profile)} is not allowed: expected (positions, values)"
         ) from exc
     ok = (
         xs.ndim == 1
@@ -583,7 +583,7 @@ def _line_profile(
     )
     if not ok:
         raise ValueError(
-            f"line_profile = {profile!r} is not allowed: expected two equally long finite "
+            f"line_profile = {shown(profile)} is not allowed: expected two equally long finite "
             "sequences (at least 2 knots) with strictly increasing positions"
         )
     return xs, rs

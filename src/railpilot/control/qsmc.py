@@ -45,7 +45,13 @@ import math
 import numpy as np
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt, check_limits
+from railpilot.control.base import (
+    Controller,
+    check_dt,
+    check_flag,
+    check_limits,
+    check_number,
+)
 
 # params layout
 (
@@ -301,17 +307,18 @@ class QSMC(Controller):
         keep_q: bool = True,
     ) -> None:
         low, high = check_limits(output_limits)
-        _check("c", c, positive=True)
-        _check("eps", eps, positive=True)
-        _check("q", q, positive=True)
-        _check("zeta", zeta)
-        _check("Delta", Delta)
-        _check("T", T, positive=True)
-        _check("sigma", sigma)
-        _check("tau", tau)
-        _check("d_max", d_max)
-        if not (tau_d > 0):  # inf allowed: no estimate
-            raise ValueError(f"tau_d = {tau_d!r} is not allowed: expected a number > 0 [s] or inf")
+        c = check_number("c", c, positive=True, unit="1/s")
+        eps = check_number("eps", eps, positive=True, unit="m/s^2")
+        q = check_number("q", q, positive=True, unit="1/s")
+        zeta = check_number("zeta", zeta, minimum=0.0, unit="m + m/s")
+        Delta = check_number("Delta", Delta, minimum=0.0, unit="m/s")
+        T = check_number("T", T, positive=True, unit="s")
+        sigma = check_number("sigma", sigma, minimum=0.0, unit="s")
+        tau = check_number("tau", tau, minimum=0.0, unit="s")
+        d_max = check_number("d_max", d_max, minimum=0.0, unit="m/s^2")
+        # inf allowed: no estimate
+        tau_d = check_number("tau_d", tau_d, positive=True, unit="s", allow_inf=True)
+        keep_q = check_flag("keep_q", keep_q)
         if not 1.0 - T * q > 0.0:
             raise ValueError(
                 f"q = {q!r} is not allowed with T = {T!r}: expected 1 - T q > 0 (q < {1.0 / T:g})"
@@ -354,7 +361,8 @@ class QSMC(Controller):
         dt = check_dt(dt)
         if not 1.0 - dt * self.params[P_Q] > 0.0:
             raise ValueError(
-                f"dt = {dt!r} is not allowed with q = {self.params[P_Q]!r}: expected 1 - dt q > 0"
+                f"dt = {dt!r} is not allowed with q = {float(self.params[P_Q])!r}: "
+                "expected 1 - dt q > 0"
             )
         xr, vr, ar = reference
         x, v = measurement
@@ -392,14 +400,6 @@ class QSMC(Controller):
     @property
     def output_limits(self) -> tuple[float, float]:
         return float(self.params[P_LO]), float(self.params[P_HI])
-
-
-def _check(label: str, value: float, positive: bool = False) -> None:
-    """Raise ValueError naming ``label`` unless ``value`` is finite and >= 0 (> 0)."""
-    ok = np.isfinite(value) and (value > 0 if positive else value >= 0)
-    if not ok:
-        bound = "> 0" if positive else ">= 0"
-        raise ValueError(f"{label} = {value!r} is not allowed: expected a finite number {bound}")
 
 
 @njit(cache=True)

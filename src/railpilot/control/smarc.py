@@ -35,7 +35,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from railpilot.control.base import Controller, check_dt, check_limits
+from railpilot.control.base import Controller, check_dt, check_limits, check_number, check_pair
 
 (
     P_C,
@@ -101,27 +101,6 @@ def smarc_step(
     return u_out
 
 
-def _check_pairs(**pairs: object) -> None:
-    """Each argument a pair of numbers (``theta_bounds`` a pair of pairs)."""
-
-    def is_pair(value: object) -> bool:
-        return (
-            isinstance(value, tuple | list)
-            and len(value) == 2
-            and all(isinstance(v, int | float) and not isinstance(v, bool) for v in value)
-        )
-
-    for name, value in pairs.items():
-        ok = (
-            (isinstance(value, tuple | list) and len(value) == 2 and all(is_pair(v) for v in value))
-            if name == "theta_bounds"
-            else is_pair(value)
-        )
-        if not ok:
-            shape = "a pair of (min, max) pairs" if name == "theta_bounds" else "a pair of numbers"
-            raise ValueError(f"{name} = {value!r} is not allowed: expected {shape}")
-
-
 class SMARC(Controller):
     """Sliding-mode adaptive robust tracking controller.
 
@@ -162,25 +141,37 @@ class SMARC(Controller):
         output_limits: tuple[float | None, float | None] = (None, None),
     ) -> None:
         low, high = check_limits(output_limits)
-        _check_pairs(gamma=gamma, theta0=theta0, theta_bounds=theta_bounds)
-        values = {
-            "c": c,
-            "ks": ks,
-            "alpha": alpha,
-            "eta": eta,
-            "phi": phi,
-            "gamma1": gamma[0],
-            "gamma2": gamma[1],
-        }
-        for label, value in values.items():
-            if not (np.isfinite(value) and value >= 0):
+        c = check_number("c", c, minimum=0.0, unit="1/s")
+        ks = check_number("ks", ks, minimum=0.0, unit="1/s")
+        alpha = check_number("alpha", alpha, minimum=0.0, unit="s/m")
+        eta = check_number("eta", eta, minimum=0.0, unit="m/s^2")
+        phi = check_number("phi", phi, minimum=0.0, unit="m/s")
+        gamma1, gamma2 = (
+            check_number(f"gamma{i + 1}", g, minimum=0.0)
+            for i, g in enumerate(check_pair("gamma", gamma, what="a pair of numbers"))
+        )
+        theta0_1, theta0_2 = (
+            check_number(f"theta0[{i}]", t, unit="m/s^2" if i else "")
+            for i, t in enumerate(check_pair("theta0", theta0, what="a pair of numbers"))
+        )
+        bounds = []
+        for i, pair in enumerate(
+            check_pair("theta_bounds", theta_bounds, what="a pair of (min, max) pairs")
+        ):
+            name = f"theta_bounds[{i}]"
+            lo_b, hi_b = (
+                check_number(f"{name}[{j}]", b)
+                for j, b in enumerate(check_pair(name, pair, what="a pair (min, max)"))
+            )
+            if not lo_b <= hi_b:
                 raise ValueError(
-                    f"{label} = {value!r} is not allowed: expected a finite number >= 0"
+                    f"{name} = {(lo_b, hi_b)!r} is not allowed: expected (min, max) with min <= max"
                 )
-        for i, (lo_b, hi_b) in enumerate(theta_bounds):
-            if not lo_b <= theta0[i] <= hi_b:
+            bounds.append((lo_b, hi_b))
+        for i, (theta, (lo_b, hi_b)) in enumerate(zip((theta0_1, theta0_2), bounds, strict=True)):
+            if not lo_b <= theta <= hi_b:
                 raise ValueError(
-                    f"theta0[{i}] = {theta0[i]!r} is not allowed: expected a value inside "
+                    f"theta0[{i}] = {theta!r} is not allowed: expected a value inside "
                     f"theta_bounds[{i}] = {(lo_b, hi_b)!r}"
                 )
         self.params = np.array(
@@ -190,14 +181,14 @@ class SMARC(Controller):
                 alpha,
                 eta,
                 phi,
-                gamma[0],
-                gamma[1],
-                theta_bounds[0][0],
-                theta_bounds[0][1],
-                theta_bounds[1][0],
-                theta_bounds[1][1],
-                theta0[0],
-                theta0[1],
+                gamma1,
+                gamma2,
+                bounds[0][0],
+                bounds[0][1],
+                bounds[1][0],
+                bounds[1][1],
+                theta0_1,
+                theta0_2,
                 low,
                 high,
             ],
@@ -215,6 +206,7 @@ class SMARC(Controller):
         self, reference: tuple[float, float, float], measurement: tuple[float, float], dt: float
     ) -> float:
         """``reference = (x_d [m], v_d [m/s], a_d [m/s^2])``, ``measurement = (x, v)``."""
+        dt = check_dt(dt)
         xd, vd, ad = reference
         x, v = measurement
         return float(
@@ -226,7 +218,7 @@ class SMARC(Controller):
                 float(ad),
                 float(x),
                 float(v),
-                check_dt(dt),
+                dt,
             )
         )
 
