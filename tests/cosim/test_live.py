@@ -177,3 +177,21 @@ def test_a_train_that_learns_of_a_red_exit_signal_as_it_departs_stays_put() -> N
     driver.cab_signal(None, signal_m + 3000.0, departure + 300.0)  # it clears
     position, speed = driver.at(departure + 420.0)
     assert position > signal_m and speed > 0.0
+
+
+def test_the_dashboards_browser_runs_below_the_runs_priority() -> None:
+    """The photographer's process (and the chromium it starts, which inherits it) is
+    niced, so that a browser's start does not take the cores from the train processes."""
+    import multiprocessing
+    import os
+    from concurrent.futures import ProcessPoolExecutor
+
+    from railpilot.cosim.live import SCREENSHOT_NICENESS, _lower_priority
+
+    if not hasattr(os, "nice"):
+        pytest.skip("no os.nice here")
+    ours = os.nice(0)
+    spawn = multiprocessing.get_context("spawn")
+    with ProcessPoolExecutor(1, mp_context=spawn, initializer=_lower_priority) as pool:
+        theirs = pool.submit(os.nice, 0).result()
+    assert theirs == min(ours + SCREENSHOT_NICENESS, 19)

@@ -117,3 +117,19 @@ def test_every_push_is_recorded_with_its_cost_and_size(client: TestClient) -> No
     first = pushes[0]
     assert first.size_bytes == len(text)
     assert first.build_s >= 0.0 and first.encode_s >= 0.0
+
+
+def test_the_pages_first_fetch_is_the_shared_snapshot_the_pushes_send(
+    client: TestClient,
+) -> None:
+    """``GET /api/snapshot`` goes through the shared snapshot (built and encoded a slice at
+    a time, recorded as a push), not a whole snapshot built in one go in the ground's
+    loop."""
+    fetched = client.get("/api/snapshot")
+    assert fetched.status_code == 200
+    assert fetched.headers["content-type"].startswith("application/json")
+    pushes = list(client.app.state.pushes)  # type: ignore[attr-defined]
+    assert len(pushes) == 1 and pushes[0].size_bytes == len(fetched.text)
+    with client.websocket_connect("/ws") as ws:
+        pushed = ws.receive_text()
+    assert json.loads(pushed)["version"] == fetched.json()["version"]

@@ -7,7 +7,7 @@ or TSRs; the only clock it reads is the event loop's, to pace the pushes.
 Routes
 ------
 - ``GET /``: the page (static/index.html; its script and style under ``/static``);
-- ``GET /api/snapshot``: the current snapshot (JSON);
+- ``GET /api/snapshot``: the current snapshot (JSON; the shared one the pushes send, below);
 - ``POST /api/tsr``: set a TSR from the form's fields (JSON object);
 - ``POST /api/tsr/{session}/cancel``: cancel a TSR;
 - ``WS /ws``: a snapshot when the source's version changes, and at least every second.
@@ -17,7 +17,8 @@ What the pushes cost the ground: the app runs in the ground server's event loop
 train's frames wait (docs/scaling.md). So:
 
 - one snapshot serves every open page: it is built (and encoded) once per change, and a
-  page that asks within :data:`POLL_INTERVAL_S` of it gets the same text;
+  page that asks within :data:`POLL_INTERVAL_S` of it gets the same text, its first
+  ``GET /api/snapshot`` included;
 - a changed snapshot waits after the previous one for what that cost to build and encode
   divided by :data:`LOOP_SHARE` (at least :data:`POLL_INTERVAL_S`, at most
   :data:`MAX_GAP_SHARE` of ``push_interval_s``): the pushes take about ``LOOP_SHARE`` of
@@ -236,7 +237,11 @@ def create_app(
     async def snapshot(request: Request) -> Response:
         if (refused := unavailable()) is not None:
             return refused
-        return _json(source.snapshot(source.now_s()))
+        # the shared snapshot, built and encoded a slice at a time as the pushes are: a
+        # page that opens (a browser's first fetch) must not hold the trains' frames for
+        # a whole snapshot either
+        _, text = await shared.text(source.version())
+        return Response(text, media_type="application/json")
 
     async def set_tsr(request: Request) -> Response:
         if not authorized(request):
