@@ -449,9 +449,10 @@ class _LiveRun:
         from railpilot.web.browser import dashboard_screenshot
 
         trains = len([m for m in self.seen.values() if not m["finished"]])
-        # the browser in a process of its own, below the run's priority: chromium's start
-        # and first render take a core for a second or more, which at 60x is a minute of
-        # the run's link, and on two cores made the trains' frames late enough to fail it
+        # the browser in a process of its own, below the run's priority: while chromium
+        # started and rendered, the trains' one-second steps took 60-220 ms of wall clock
+        # on two cores (4-13 s of the run's at 60x), late enough to fail their links
+        # (docs/line-run.md, "Live")
         photographer = ProcessPoolExecutor(1, mp_context=self.context, initializer=_lower_priority)
         try:
             self.screenshot = await asyncio.wrap_future(
