@@ -34,6 +34,8 @@ from typing import Any, ClassVar, Protocol
 
 import numpy as np
 
+from railpilot.checks import check_number
+from railpilot.errors import ConfigError
 from railpilot.vehicle.train import Train
 
 
@@ -45,6 +47,19 @@ class PackContext:
     #: the load-weighed effective mass the brake manager computes forces with [kg]
     load_weighed_eff_mass_kg: float
     train: Train
+
+    def __post_init__(self) -> None:
+        # the simulation's step: a brake packed for it names sim.dt_s too
+        check_number("sim.dt_s", self.dt_s, positive=True, unit="s", error=ConfigError)
+        check_number(
+            "load_weighed_eff_mass_kg",
+            self.load_weighed_eff_mass_kg,
+            positive=True,
+            unit="kg",
+            error=ConfigError,
+        )
+        if not isinstance(self.train, Train):
+            raise ConfigError("train", self.train, "a railpilot.vehicle.train.Train")
 
 
 class BrakeModel(Protocol):

@@ -60,6 +60,7 @@ from scipy.optimize import brentq
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.lag_delay import MAX_DELAY_STEPS, ring_back, ring_next
+from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
 from railpilot.units import Num
 
@@ -283,36 +284,60 @@ class BrakePipeBrake:
     changeover_kmh: ClassVar[float] = 0.0
 
     def __post_init__(self) -> None:
-        if self.position not in UIC_TIMES_S:
+        if not (isinstance(self.position, str) and self.position in UIC_TIMES_S):
             raise ConfigError("brake.position", self.position, "'G' or 'P'")
         for name in ("application_time_s", "release_time_s"):
             value = getattr(self, name)
-            if value is not None and not (np.isfinite(value) and 0 < value <= MAX_TIME_S):
-                raise ConfigError(f"brake.{name}", value, f"a number in (0, {MAX_TIME_S:g}] s")
+            if value is not None:
+                check_number(
+                    f"brake.{name}",
+                    value,
+                    positive=True,
+                    maximum=MAX_TIME_S,
+                    allowed=f"a number in (0, {MAX_TIME_S:g}] s",
+                    error=ConfigError,
+                )
         for name in ("application_wave_mps", "release_wave_mps"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and 0 < value <= MAX_WAVE_MPS):
-                raise ConfigError(f"brake.{name}", value, f"a speed in (0, {MAX_WAVE_MPS:g}] m/s")
-        if not (
-            isinstance(self.n_segments, int | np.integer)
-            and not isinstance(self.n_segments, bool)
-            and 2 <= self.n_segments <= MAX_SEGMENTS
-        ):
-            raise ConfigError(
-                "brake.n_segments", self.n_segments, f"an integer in [2, {MAX_SEGMENTS}]"
+            check_number(
+                f"brake.{name}",
+                getattr(self, name),
+                positive=True,
+                maximum=MAX_WAVE_MPS,
+                allowed=f"a speed in (0, {MAX_WAVE_MPS:g}] m/s",
+                error=ConfigError,
             )
-        if not (np.isfinite(self.max_decel_mps2) and self.max_decel_mps2 > 0):
-            raise ConfigError("brake.max_decel_mps2", self.max_decel_mps2, "a number > 0")
-        if not (np.isfinite(self.reaction_s) and 0 <= self.reaction_s <= MAX_REACTION_S):
-            raise ConfigError(
-                "brake.reaction_s", self.reaction_s, f"a number in [0, {MAX_REACTION_S:g}] s"
-            )
+        check_count(
+            "brake.n_segments",
+            self.n_segments,
+            2,
+            MAX_SEGMENTS,
+            allowed=f"an integer in [2, {MAX_SEGMENTS}]",
+            error=ConfigError,
+        )
+        check_number(
+            "brake.max_decel_mps2",
+            self.max_decel_mps2,
+            positive=True,
+            allowed="a number > 0",
+            error=ConfigError,
+        )
+        check_number(
+            "brake.reaction_s",
+            self.reaction_s,
+            minimum=0.0,
+            maximum=MAX_REACTION_S,
+            allowed=f"a number in [0, {MAX_REACTION_S:g}] s",
+            error=ConfigError,
+        )
         for name in ("valve_flow_mps", "pipe_diffusivity_m2ps"):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not (
-                isinstance(value, int | float | np.integer | np.floating) and value > 0
-            ):
-                raise ConfigError(f"brake.{name}", value, "a number > 0 (inf: ideal)")
+            check_number(
+                f"brake.{name}",
+                getattr(self, name),
+                positive=True,
+                allow_inf=True,
+                allowed="a number > 0 (inf: ideal)",
+                error=ConfigError,
+            )
 
     @property
     def application_s(self) -> float:

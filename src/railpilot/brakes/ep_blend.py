@@ -42,6 +42,7 @@ from numba import njit
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.brakes.lag_delay import ring_back, ring_next
+from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
 from railpilot.units import KMH_PER_MPS, kn_to_n, n_to_kn
 
@@ -129,15 +130,24 @@ class EPBrake:
             "beta2",
             "prenotice_s",
         ):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value >= 0):
-                raise ConfigError(f"brake.{name}", value, "a finite number >= 0")
+            check_number(
+                f"brake.{name}",
+                getattr(self, name),
+                minimum=0.0,
+                allowed="a finite number >= 0",
+                error=ConfigError,
+            )
         for name in ("jerk_limit_mps3", "fade_rate_n_per_s", "beta3"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0):
-                raise ConfigError(f"brake.{name}", value, "a finite number > 0")
-        if not (isinstance(self.cutout_cars, int) and self.cutout_cars >= 0):
-            raise ConfigError("brake.cutout_cars", self.cutout_cars, "an integer >= 0")
+            check_number(
+                f"brake.{name}",
+                getattr(self, name),
+                positive=True,
+                allowed="a finite number > 0",
+                error=ConfigError,
+            )
+        check_count(
+            "brake.cutout_cars", self.cutout_cars, 0, allowed="an integer >= 0", error=ConfigError
+        )
         # a brake slower than a minute is a configuration error, not a brake
         for name in ("delay_s", "air_lag_s", "electric_lag_s", "prenotice_s"):
             value = getattr(self, name)

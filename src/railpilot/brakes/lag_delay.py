@@ -26,10 +26,14 @@ import numpy as np
 from numba import njit
 from scipy.linalg import expm
 
+from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
 
 #: longest delay line the exact method builds (80 MB of float64)
 MAX_DELAY_STEPS = 10_000_000
+#: highest order of Pade approximant :class:`LagDelay` builds: a state space of this
+#: order; beyond about ten its discretisation loses its digits (nan for a short delay)
+MAX_PADE_ORDER = 10
 
 # params layout of the exact kernel
 E_ALPHA_F, E_ALPHA_REST, E_N, E_FRAC, E_LEN = range(5)
@@ -138,9 +142,9 @@ class LagDelay:
     method
         ``"exact"`` (ring buffer, default) or ``"pade"``.
     pade_order
-        Order of the Pade approximant for ``method="pade"``.
+        Order of the Pade approximant for ``method="pade"``, 1 to :data:`MAX_PADE_ORDER`.
     initial
-        Output and past commands before the first step (steady state).
+        Output and past commands before the first step (steady state), a finite number.
     """
 
     def __init__(
@@ -152,19 +156,21 @@ class LagDelay:
         pade_order: int = 1,
         initial: float = 0.0,
     ) -> None:
-        for name, value in (("lag_s", lag_s), ("delay_s", delay_s)):
-            if not (np.isfinite(value) and value >= 0):
-                raise ConfigError(name, value, "a finite number >= 0 [s]")
-        if not (np.isfinite(dt) and dt > 0):
-            raise ConfigError("dt", dt, "a finite number > 0 [s]")
-        if method not in ("exact", "pade"):
+        self.lag_s = check_number("lag_s", lag_s, minimum=0.0, unit="s", error=ConfigError)
+        self.delay_s = check_number("delay_s", delay_s, minimum=0.0, unit="s", error=ConfigError)
+        self.dt = check_number("dt", dt, positive=True, unit="s", error=ConfigError)
+        if not (isinstance(method, str) and method in ("exact", "pade")):
             raise ConfigError("method", method, "'exact' or 'pade'")
-        self.lag_s = float(lag_s)
-        self.delay_s = float(delay_s)
-        self.dt = float(dt)
         self.method = method
-        self.pade_order = int(pade_order)
-        self.initial = float(initial)
+        self.pade_order = check_count(
+            "pade_order",
+            pade_order,
+            1,
+            MAX_PADE_ORDER,
+            allowed=f"an integer from 1 to {MAX_PADE_ORDER}",
+            error=ConfigError,
+        )
+        self.initial = check_number("initial", initial, error=ConfigError)
         if method == "exact":
             steps = self.delay_s / self.dt
             if steps > MAX_DELAY_STEPS:
@@ -173,7 +179,14 @@ class LagDelay:
                 )
             self.params = exact_params(np.array([self.lag_s]), np.array([self.delay_s]), self.dt)[0]
         else:
-            self._build_pade()
+            try:
+                self._build_pade()
+            except OverflowError:  # delay_s ** pade_order past a float's range
+                raise ConfigError(
+                    "delay_s",
+                    delay_s,
+                    f"a delay whose order-{self.pade_order} Pade coefficients a float holds",
+                ) from None
         self.reset()
 
     def _build_pade(self) -> None:

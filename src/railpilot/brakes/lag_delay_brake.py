@@ -22,6 +22,7 @@ from railpilot.brakes.lag_delay import (
     exact_params,
     lag_delay_exact_step,
 )
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 
 #: longest lag or delay a brake model accepts [s]
@@ -50,12 +51,22 @@ class LagDelayBrake:
 
     def __post_init__(self) -> None:
         for name in ("lag_s", "delay_s"):
-            value = getattr(self, name)
             # a brake slower than a minute is a configuration error, not a brake
-            if not (np.isfinite(value) and 0 <= value <= MAX_TIME_S):
-                raise ConfigError(f"brake.{name}", value, f"a number in [0, {MAX_TIME_S:g}] s")
-        if not (np.isfinite(self.max_decel_mps2) and self.max_decel_mps2 > 0):
-            raise ConfigError("brake.max_decel_mps2", self.max_decel_mps2, "a number > 0")
+            check_number(
+                f"brake.{name}",
+                getattr(self, name),
+                minimum=0.0,
+                maximum=MAX_TIME_S,
+                allowed=f"a number in [0, {MAX_TIME_S:g}] s",
+                error=ConfigError,
+            )
+        check_number(
+            "brake.max_decel_mps2",
+            self.max_decel_mps2,
+            positive=True,
+            allowed="a number > 0",
+            error=ConfigError,
+        )
 
     name: ClassVar[str] = "lag-delay"
     #: no electric brake, so no changeover

@@ -36,6 +36,7 @@ from numba import njit
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake, brake_pipe_ato_step
+from railpilot.checks import check_flag, check_number
 from railpilot.errors import ConfigError
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.traction import (
@@ -119,18 +120,25 @@ class LocomotiveDrive:
             )
         if not isinstance(self.air, BrakePipeBrake):
             raise ConfigError("brake.air", self.air, "a brake-pipe brake (BrakePipeBrake)")
-        lag = self.traction_lag_s
-        if isinstance(lag, bool) or not (
-            isinstance(lag, int | float | np.floating | np.integer)
-            and np.isfinite(lag)
-            and 0.0 <= lag <= MAX_LAG_S
-        ):
-            raise ConfigError("brake.traction_lag_s", lag, f"a number in [0, {MAX_LAG_S:g}] s")
-        if not isinstance(self.regen_enabled, bool | np.bool_):
-            raise ConfigError("brake.regen_enabled", self.regen_enabled, "true or false")
-        h = self.handover_kmh
-        if isinstance(h, bool) or not (isinstance(h, int | float) and 0 <= h <= 200):
-            raise ConfigError("brake.handover_kmh", h, "a speed in [0, 200] km/h")
+        check_number(
+            "brake.traction_lag_s",
+            self.traction_lag_s,
+            minimum=0.0,
+            maximum=MAX_LAG_S,
+            allowed=f"a number in [0, {MAX_LAG_S:g}] s",
+            error=ConfigError,
+        )
+        check_flag(
+            "brake.regen_enabled", self.regen_enabled, allowed="true or false", error=ConfigError
+        )
+        check_number(
+            "brake.handover_kmh",
+            self.handover_kmh,
+            minimum=0.0,
+            maximum=200.0,
+            allowed="a speed in [0, 200] km/h",
+            error=ConfigError,
+        )
 
     @property
     def lead_s(self) -> tuple[float, float]:

@@ -30,12 +30,18 @@ from __future__ import annotations
 
 import math
 from abc import ABC, abstractmethod
-from numbers import Integral, Real
 from typing import ClassVar
 
 import numpy as np
 
-from railpilot.errors import is_finite_number, shown
+# the shared checks live in railpilot.checks (the physical models use them too); these
+# names stay importable from here
+from railpilot.checks import as_float as _as_float
+from railpilot.checks import check_count as check_count
+from railpilot.checks import check_flag as check_flag
+from railpilot.checks import check_number as check_number
+from railpilot.checks import check_pair as check_pair
+from railpilot.errors import shown
 
 
 class Controller(ABC):
@@ -55,96 +61,6 @@ class Controller(ABC):
     @abstractmethod
     def components(self) -> dict[str, float]:
         """The internal terms of the last update (for tuning and plots)."""
-
-
-def _as_float(value: object) -> float | None:
-    """``value`` as a float if it is a real number (NumPy's included; not a bool, not
-    an int too large for a float), else None. nan and inf are returned as such."""
-    if type(value) is float:
-        return value
-    if isinstance(value, np.ndarray) and value.ndim == 0 and value.dtype.kind in "iuf":
-        value = value.item()  # a 0-d array, e.g. from np.sum
-    if not isinstance(value, Real) or isinstance(value, bool | np.bool_):
-        return None
-    try:
-        return float(value)
-    except (OverflowError, TypeError, ValueError):  # 10**400
-        return None
-
-
-def check_number(
-    name: str,
-    value: object,
-    *,
-    minimum: float | None = None,
-    positive: bool = False,
-    unit: str = "",
-    allow_inf: bool = False,
-    allow_nan: bool = False,
-) -> float:
-    """Return ``value`` as a float, or raise a ValueError naming ``name``.
-
-    ``value`` must be a real number (an int, a float or a NumPy scalar; not a bool),
-    finite, ``> 0`` if ``positive`` and ``>= minimum`` if given. ``allow_inf``: an
-    infinity within those bounds is allowed too (``tau_d = inf``: no estimate);
-    ``allow_nan``: nan is allowed (``stop_m = nan``: no stop point). ``unit`` is quoted
-    in the message, e.g. ``"s"``.
-    """
-    number = _as_float(value)
-    if number is not None:
-        if math.isnan(number):
-            ok = allow_nan
-        else:
-            ok = (
-                (is_finite_number(number) or allow_inf)
-                and (not positive or number > 0.0)
-                and (minimum is None or number >= minimum)
-            )
-        if ok:
-            return number
-    bound = " > 0" if positive else (f" >= {minimum:g}" if minimum is not None else "")
-    allowed = ("a number" if allow_inf else "a finite number") + bound
-    if unit:
-        allowed += f" [{unit}]"
-    if allow_inf:
-        allowed += " or inf"
-    if allow_nan:
-        allowed += " or nan"
-    raise ValueError(f"{name} = {shown(value)} is not allowed: expected {allowed}")
-
-
-def check_count(name: str, value: object, low: int, high: int) -> int:
-    """Return ``value`` as an int, or raise a ValueError naming ``name`` unless it is a
-    whole number (an int or a NumPy integer, not a bool) with ``low <= value <= high``."""
-    if (
-        isinstance(value, Integral)
-        and not isinstance(value, bool | np.bool_)
-        and low <= int(value) <= high
-    ):
-        return int(value)
-    raise ValueError(
-        f"{name} = {shown(value)} is not allowed: expected a whole number from {low} to {high}"
-    )
-
-
-def check_flag(name: str, value: object) -> bool:
-    """Return ``value`` as a bool, or raise a ValueError naming ``name`` unless it is
-    True or False (NumPy's included)."""
-    if isinstance(value, bool | np.bool_):
-        return bool(value)
-    raise ValueError(f"{name} = {shown(value)} is not allowed: expected True or False")
-
-
-def check_pair(name: str, value: object, size: int = 2, what: str = "a pair") -> tuple[object, ...]:
-    """``value`` as a tuple of ``size`` items, or a ValueError naming ``name`` unless it
-    is a tuple, a list or a NumPy array (along its first axis) of that length; the items
-    are not checked."""
-    sequence = isinstance(value, tuple | list) or (
-        isinstance(value, np.ndarray) and value.ndim >= 1
-    )
-    if sequence and len(value) == size:  # type: ignore[arg-type]
-        return tuple(value)  # type: ignore[arg-type]
-    raise ValueError(f"{name} = {shown(value)} is not allowed: expected {what}")
 
 
 def check_dt(dt: object) -> float:

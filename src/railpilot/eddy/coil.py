@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 
 # packed layout of the coil parameters used by the compiled loop
@@ -66,15 +67,21 @@ class CoilParams:
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
-            low_ok = value >= 0.0 if name == "freewheel_voltage_v" else value > 0.0
-            finite = np.isfinite(value) or (name == "reference_lead_a" and value == np.inf)
-            if not (finite and low_ok):
-                allowed = (
-                    "a finite number >= 0"
-                    if name == "freewheel_voltage_v"
-                    else ("a finite number > 0")
-                )
-                raise ConfigError(f"coil.{name}", value, allowed)
+            if name == "freewheel_voltage_v":
+                allowed = "a finite number >= 0"
+            elif name == "reference_lead_a":
+                allowed = "a finite number > 0 or inf"
+            else:
+                allowed = "a finite number > 0"
+            check_number(
+                f"coil.{name}",
+                value,
+                minimum=0.0,
+                positive=name != "freewheel_voltage_v",
+                allow_inf=name == "reference_lead_a",
+                allowed=allowed,
+                error=ConfigError,
+            )
         if not self.reference_lead_a > self.hysteresis_band_a:
             raise ConfigError(
                 "coil.reference_lead_a",

@@ -29,6 +29,7 @@ Unknown keys are rejected with a :class:`~railpilot.errors.ScenarioError` naming
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
@@ -36,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.checks import check_count, check_number
 from railpilot.control.base import Controller
 from railpilot.control.fuzzy import FuzzyController, FuzzyPI
 from railpilot.control.open_loop import OpenLoop
@@ -164,6 +166,76 @@ def _check_metrics(metrics: Mapping[str, float]) -> None:
         )
 
 
+def _check_demand(value: object) -> float:
+    return check_number(
+        "torque_demand_nm",
+        value,
+        positive=True,
+        maximum=MAX_TORQUE_DEMAND_NM,
+        allowed=f"a torque in (0, {MAX_TORQUE_DEMAND_NM:g}] N m",
+        error=ScenarioError,
+    )
+
+
+def _check_initial_speed(value: object) -> float:
+    return check_number(
+        "initial_speed_kmh",
+        value,
+        positive=True,
+        maximum=MAX_INITIAL_SPEED_KMH,
+        allowed=f"a speed in (0, {MAX_INITIAL_SPEED_KMH:g}] km/h",
+        error=ScenarioError,
+    )
+
+
+def _check_duration(value: object) -> float:
+    return check_number(
+        "duration_s",
+        value,
+        positive=True,
+        maximum=MAX_DURATION_S,
+        allowed=f"a time in (0, {MAX_DURATION_S:g}] s",
+        error=ScenarioError,
+    )
+
+
+def _check_dt(value: object, duration: float) -> float:
+    """The step [s] of a run ``duration`` [s] long: at most 10 ms and the whole run, and
+    at most :data:`~railpilot.eddy.simulate.MAX_STEPS` steps."""
+    top = min(duration, 1e-2)
+    dt = check_number(
+        "dt_s",
+        value,
+        positive=True,
+        maximum=top,
+        allowed=f"a step in (0, {top}] s",
+        error=ScenarioError,
+    )
+    steps = duration / dt  # inf for a subnormal step
+    if not (math.isfinite(steps) and round(steps) <= MAX_STEPS):
+        raise ScenarioError(
+            "dt_s",
+            value,
+            f"a step in [{duration / MAX_STEPS:g}, {top}] s: at most "
+            f"{MAX_STEPS:,} steps of duration_s = {duration:g} s (simulate.py MAX_STEPS)",
+        )
+    return dt
+
+
+def _check_record_every(value: object) -> int:
+    return check_count("record_every", value, 1, allowed="an integer >= 1", error=ScenarioError)
+
+
+#: the scenario's sections of numbers, with their keys and defaults
+_NUMBER_SECTIONS: dict[str, dict[str, float]] = {
+    "pid": PID_DEFAULTS,
+    "fuzzy": FUZZY_DEFAULTS,
+    "fuzzy_pi": FUZZY_PI_DEFAULTS,
+    "table_grid": TABLE_GRID_DEFAULTS,
+    "metrics": METRICS_DEFAULTS,
+}
+
+
 @dataclass(frozen=True)
 class EddyScenario:
     """A validated eddy-brake scenario (see the module docstring for the file layout)."""
@@ -184,6 +256,29 @@ class EddyScenario:
     table_csv: Path | None = None
     table_grid: dict[str, float] = field(default_factory=lambda: dict(TABLE_GRID_DEFAULTS))
     metrics: dict[str, float] = field(default_factory=lambda: dict(METRICS_DEFAULTS))
+
+    def __post_init__(self) -> None:
+        # what from_mapping checks, for a scenario built directly
+        _check_demand(self.torque_demand_nm)
+        _check_initial_speed(self.initial_speed_kmh)
+        _check_dt(self.dt_s, _check_duration(self.duration_s))
+        _check_record_every(self.record_every)
+        if not isinstance(self.name, str):
+            raise ScenarioError("name", self.name, "a string")
+        if not (isinstance(self.controller, str) and self.controller in CONTROLLERS):
+            raise ScenarioError("controller", self.controller, "one of " + ", ".join(CONTROLLERS))
+        for key, defaults in _NUMBER_SECTIONS.items():
+            value = getattr(self, key)
+            _section({key: value}, key, defaults)  # a mapping of known keys to numbers
+            if set(value) != set(defaults):
+                raise ScenarioError(key, value, "a table of " + ", ".join(sorted(defaults)))
+        _check_metrics(self.metrics)
+        for key, cls in (("brake", EddyBrakeParams), ("coil", CoilParams), ("train", TrainParams)):
+            if not isinstance(getattr(self, key), cls):
+                raise ScenarioError(key, getattr(self, key), f"a {cls.__name__}")
+        csv = self.table_csv
+        if csv is not None and not (isinstance(csv, os.PathLike) or (isinstance(csv, str) and csv)):
+            raise ScenarioError("table_csv", csv, "a path, or None (the analytic model's grid)")
 
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], base_dir: Path | None = None) -> EddyScenario:
@@ -206,33 +301,13 @@ class EddyScenario:
         controller = data.get("controller", "fuzzy_pi")
         if controller not in CONTROLLERS:
             raise ScenarioError("controller", controller, "one of " + ", ".join(CONTROLLERS))
-        demand = _number("torque_demand_nm", data["torque_demand_nm"])
-        if not 0 < demand <= MAX_TORQUE_DEMAND_NM:
-            raise ScenarioError(
-                "torque_demand_nm", demand, f"a torque in (0, {MAX_TORQUE_DEMAND_NM:g}] N m"
-            )
-        speed = _number("initial_speed_kmh", data["initial_speed_kmh"])
-        if not 0 < speed <= MAX_INITIAL_SPEED_KMH:
-            raise ScenarioError(
-                "initial_speed_kmh", speed, f"a speed in (0, {MAX_INITIAL_SPEED_KMH:g}] km/h"
-            )
-        duration = _number("duration_s", data.get("duration_s", 100.0))
-        if not 0 < duration <= MAX_DURATION_S:
-            raise ScenarioError("duration_s", duration, f"a time in (0, {MAX_DURATION_S:g}] s")
-        dt = _number("dt_s", data.get("dt_s", 1e-4))
-        if not 0 < dt <= min(duration, 1e-2):
-            raise ScenarioError("dt_s", dt, f"a step in (0, {min(duration, 1e-2)}] s")
-        steps = duration / dt  # inf for a subnormal step
-        if not (math.isfinite(steps) and round(steps) <= MAX_STEPS):
-            raise ScenarioError(
-                "dt_s",
-                dt,
-                f"a step in [{duration / MAX_STEPS:g}, {min(duration, 1e-2)}] s: at most "
-                f"{MAX_STEPS:,} steps of duration_s = {duration:g} s (simulate.py MAX_STEPS)",
-            )
-        record_every = int(_number("record_every", data.get("record_every", 10), integer=True))
-        if record_every < 1:
-            raise ScenarioError("record_every", record_every, "an integer >= 1")
+        demand = _check_demand(_number("torque_demand_nm", data["torque_demand_nm"]))
+        speed = _check_initial_speed(_number("initial_speed_kmh", data["initial_speed_kmh"]))
+        duration = _check_duration(_number("duration_s", data.get("duration_s", 100.0)))
+        dt = _check_dt(_number("dt_s", data.get("dt_s", 1e-4)), duration)
+        record_every = _check_record_every(
+            int(_number("record_every", data.get("record_every", 10), integer=True))
+        )
 
         table_raw = data.get("table", {})
         if not isinstance(table_raw, Mapping):

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 from numba import njit
 
+from railpilot.checks import check_number
 from railpilot.eddy.torque_model import EddyBrakeParams, eddy_torque_at_speed_nm
 from railpilot.errors import ConfigError
 from railpilot.textfile import read_text
@@ -69,8 +70,16 @@ def table_torque_nm(
     return (1.0 - fi) * ((1.0 - fj) * m00 + fj * m01) + fi * ((1.0 - fj) * m10 + fj * m11)
 
 
-def _check_axis(name: str, axis: np.ndarray) -> np.ndarray:
-    axis = np.ascontiguousarray(axis, dtype=np.float64)
+def _as_array(name: str, value: object, allowed: str) -> np.ndarray:
+    """``value`` as a contiguous float64 array, or a ConfigError naming ``name``."""
+    try:
+        return np.ascontiguousarray(value, dtype=np.float64)
+    except (TypeError, ValueError, OverflowError):  # 'x', [None, 'x'], 10**400, 1j
+        raise ConfigError(name, value, allowed) from None
+
+
+def _check_axis(name: str, axis: object) -> np.ndarray:
+    axis = _as_array(name, axis, f"a one-dimensional axis of numbers, at least {MIN_POINTS}")
     if axis.ndim != 1 or axis.size < MIN_POINTS:
         raise ConfigError(
             name, axis.tolist(), f"a one-dimensional axis with at least {MIN_POINTS} points"
@@ -117,9 +126,13 @@ class TorqueTable:
     source: str = "user"
 
     def __post_init__(self) -> None:
+        if not isinstance(self.source, str):
+            raise ConfigError("table.source", self.source, "a string")
         currents = _check_axis("table.currents_a", self.currents_a)
         speeds = _check_axis("table.speeds_mps", self.speeds_mps)
-        torque = np.ascontiguousarray(self.torque_nm, dtype=np.float64)
+        torque = _as_array(
+            "table.torque_nm", self.torque_nm, "an array of numbers, one row per current"
+        )
         expected = (currents.size, speeds.size)
         if torque.shape != expected:
             raise ConfigError(
@@ -163,8 +176,9 @@ class TorqueTable:
             ("table.max_speed_kmh", max_speed_kmh),
             ("table.speed_step_kmh", speed_step_kmh),
         ):
-            if not (np.isfinite(value) and value > 0.0):
-                raise ConfigError(name, value, "a finite number > 0")
+            check_number(
+                name, value, positive=True, allowed="a finite number > 0", error=ConfigError
+            )
         # the table must cover the run's speeds (<= 400 km/h), not overflow round() below
         if max_speed_kmh > MAX_SPEED_KMH:
             raise ConfigError(
@@ -177,15 +191,22 @@ class TorqueTable:
         ):
             if step > top:
                 raise ConfigError(name, step, f"a step in (0, {top_name} = {top:g}]")
-        n_i = round(max_current_a / current_step_a) + 1
-        n_v = round(max_speed_kmh / speed_step_kmh) + 1
+        ratio_i = max_current_a / current_step_a
+        ratio_v = max_speed_kmh / speed_step_kmh
+        # a ratio past a float's range (1e300 A in 1e-10 A steps) is inf: no round() of it
+        too_many = max(ratio_i, ratio_v) > MAX_GRID_POINTS
+        n_i = 0 if too_many else round(ratio_i) + 1
+        n_v = 0 if too_many else round(ratio_v) + 1
         # a grid is a table in memory: refuse one that could not be built (or used)
-        if n_i * n_v > MAX_GRID_POINTS:
+        if too_many or n_i * n_v > MAX_GRID_POINTS:
+            given = " x ".join(
+                f"{round(r) + 1:,}" if r <= MAX_GRID_POINTS else f"{r:.3g}"
+                for r in (ratio_i, ratio_v)
+            )
             raise ConfigError(
                 "table.current_step_a / table.speed_step_kmh",
                 (current_step_a, speed_step_kmh),
-                f"steps giving at most {MAX_GRID_POINTS:,} grid points "
-                f"(these give {n_i:,} x {n_v:,})",
+                f"steps giving at most {MAX_GRID_POINTS:,} grid points (these give {given})",
             )
         currents = np.linspace(0.0, max_current_a, max(n_i, MIN_POINTS))
         speeds = kmh_to_mps(np.linspace(0.0, max_speed_kmh, max(n_v, MIN_POINTS)))

@@ -38,6 +38,7 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 from railpilot.units import Num, wheel_angular_speed_rad_s
 
@@ -89,8 +90,13 @@ class EddyBrakeParams:
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
-            if not (np.isfinite(value) and value > 0.0):
-                raise ConfigError(f"brake.{name}", value, "a finite number > 0")
+            check_number(
+                f"brake.{name}",
+                value,
+                positive=True,
+                allowed="a finite number > 0",
+                error=ConfigError,
+            )
         if not self.r_outer_m > self.r_inner_m:
             raise ConfigError(
                 "brake.r_outer_m", self.r_outer_m, f"a radius > r_inner_m = {self.r_inner_m}"

@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+from railpilot.checks import check_number
 from railpilot.eddy.torque_model import WHEEL_DIAMETER_M
 from railpilot.errors import ConfigError
 from railpilot.units import G_MPS2, KMH_PER_MPS
@@ -49,13 +50,14 @@ class TrainParams:
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
             positive = name in ("axle_mass_kg", "wheel_diameter_m")
-            ok = np.isfinite(value) and (value > 0.0 if positive else value >= 0.0)
-            if not ok:
-                raise ConfigError(
-                    f"train.{name}",
-                    value,
-                    "a finite number > 0" if positive else ("a finite number >= 0"),
-                )
+            check_number(
+                f"train.{name}",
+                value,
+                minimum=0.0,
+                positive=positive,
+                allowed="a finite number > 0" if positive else "a finite number >= 0",
+                error=ConfigError,
+            )
 
     def packed(self) -> np.ndarray:
         out = np.zeros(N_TRAIN)

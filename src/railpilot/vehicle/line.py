@@ -7,10 +7,12 @@ gradient over the train length is left to a later refinement (docs/architecture.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 from railpilot.units import curve_specific_resistance, gradient_permille_to_specific
 from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
@@ -18,20 +20,37 @@ from railpilot.vehicle.train import MAX_SPEED_KMH, MAX_SPEED_MPS
 
 @dataclass(frozen=True)
 class Segment:
-    """A stretch of line ``[start_m, end_m)`` carrying one value."""
+    """A stretch of line ``[start_m, end_m)`` carrying one value.
+
+    Any three numbers build one; the :class:`Line` holding it refuses a non-finite or
+    backwards segment, naming its place (``line.gradients[3]``).
+    """
 
     start_m: float
     end_m: float
     value: float
 
+    def __post_init__(self) -> None:
+        if type(self.start_m) is type(self.end_m) is type(self.value) is float:
+            return  # any float will do: the usual case, a line of thousands of segments
+        for name in ("start_m", "end_m", "value"):
+            check_number(
+                f"segment.{name}",
+                getattr(self, name),
+                allow_inf=True,
+                allow_nan=True,
+                allowed="a number",
+                error=ConfigError,
+            )
+
     def check(self, where: str) -> None:
         if not (
-            np.isfinite(self.start_m) and np.isfinite(self.end_m) and self.end_m > self.start_m
+            math.isfinite(self.start_m) and math.isfinite(self.end_m) and self.end_m > self.start_m
         ):
             raise ConfigError(
                 where, (self.start_m, self.end_m), "a segment with finite start_m < end_m"
             )
-        if not np.isfinite(self.value):
+        if not math.isfinite(self.value):
             raise ConfigError(where, self.value, "a finite number")
 
 
@@ -41,6 +60,11 @@ class Station:
 
     name: str
     stop_m: float
+
+    def __post_init__(self) -> None:
+        # stop_m is checked by the Line holding the station (line.stations[2].stop_m)
+        if not isinstance(self.name, str):
+            raise ConfigError("station.name", self.name, "a string")
 
 
 @dataclass(frozen=True)
@@ -56,6 +80,10 @@ class Line:
     stations: tuple[Station, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
+        for name in ("gradients", "curves", "speed_limits", "stations"):
+            _check_items(
+                f"line.{name}", getattr(self, name), Station if name == "stations" else Segment
+            )
         for i, seg in enumerate(self.gradients):
             seg.check(f"line.gradients[{i}]")
         for i, seg in enumerate(self.curves):
@@ -71,6 +99,13 @@ class Line:
                     seg.value,
                     f"a limit > 0 and <= {MAX_SPEED_MPS:.4g} m/s ({MAX_SPEED_KMH:g} km/h)",
                 )
+        for i, station in enumerate(self.stations):
+            check_number(
+                f"line.stations[{i}].stop_m",
+                station.stop_m,
+                allowed="a finite number [m]",
+                error=ConfigError,
+            )
 
     def resistance_profile(self) -> tuple[np.ndarray, np.ndarray]:
         """Additional specific resistance of the line as a step function.
@@ -108,6 +143,16 @@ class Line:
             inside = (pos >= seg.start_m) & (pos < seg.end_m)
             limit = np.where(inside, np.minimum(limit, seg.value), limit)
         return limit
+
+
+def _check_items(field: str, items: object, kind: type) -> None:
+    """A ConfigError naming ``field`` (or the item) unless ``items`` is a tuple or list of
+    ``kind``."""
+    if not isinstance(items, tuple | list):
+        raise ConfigError(field, items, f"a tuple of {kind.__name__}")
+    for i, item in enumerate(items):
+        if not isinstance(item, kind):
+            raise ConfigError(f"{field}[{i}]", item, f"a {kind.__name__}")
 
 
 def step_lookup(edges: np.ndarray, values: np.ndarray, x: np.ndarray) -> np.ndarray:

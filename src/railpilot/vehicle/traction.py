@@ -30,6 +30,7 @@ import numpy as np
 import numpy.typing as npt
 from numba import njit
 
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 from railpilot.units import kmh_to_mps, kn_to_n, tonne_to_kg
 from railpilot.vehicle.train import _non_negative, _positive
@@ -73,9 +74,15 @@ TRACTION_EFFICIENCY = 0.85
 REGEN_EFFICIENCY = 0.80
 
 
-def _efficiency(name: str, value: float) -> None:
-    if not (np.isfinite(value) and 0.0 < value <= 1.0):
-        raise ConfigError(name, value, "an efficiency in (0, 1]")
+def _efficiency(name: str, value: object) -> None:
+    check_number(
+        name,
+        value,
+        positive=True,
+        maximum=1.0,
+        allowed="an efficiency in (0, 1]",
+        error=ConfigError,
+    )
 
 
 # --- the laws: Numba scalar twins --------------------------------------------------------
@@ -307,8 +314,14 @@ class Locomotive:
     regen_efficiency: float = REGEN_EFFICIENCY
 
     def __post_init__(self) -> None:
+        if not isinstance(self.name, str):
+            raise ConfigError("locomotive.name", self.name, "a string")
         _positive("locomotive.mass_kg", self.mass_kg)
         _positive("locomotive.length_m", self.length_m)
+        if not isinstance(self.traction, TractionEnvelope):
+            raise ConfigError("locomotive.traction", self.traction, "a TractionEnvelope")
+        if not isinstance(self.regen, RegenEnvelope):
+            raise ConfigError("locomotive.regen", self.regen, "a RegenEnvelope")
         _efficiency("locomotive.traction_efficiency", self.traction_efficiency)
         _efficiency("locomotive.regen_efficiency", self.regen_efficiency)
 

@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
 from railpilot.units import Num, kmh_to_mps
 
@@ -19,14 +20,12 @@ MAX_SPEED_MPS = float(kmh_to_mps(MAX_SPEED_KMH))
 MAX_LENGTH_M = 10_000.0
 
 
-def _positive(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value > 0):
-        raise ConfigError(name, value, "a finite number > 0")
+def _positive(name: str, value: object) -> None:
+    check_number(name, value, positive=True, allowed="a finite number > 0", error=ConfigError)
 
 
-def _non_negative(name: str, value: float) -> None:
-    if not (np.isfinite(value) and value >= 0):
-        raise ConfigError(name, value, "a finite number >= 0")
+def _non_negative(name: str, value: object) -> None:
+    check_number(name, value, minimum=0.0, allowed="a finite number >= 0", error=ConfigError)
 
 
 @dataclass(frozen=True)
@@ -93,8 +92,11 @@ class Train:
         for name in ("davis_a0", "davis_a1", "davis_a2"):
             _non_negative(f"train.{name}", getattr(self, name))
         _positive("train.max_service_decel_mps2", self.max_service_decel_mps2)
-        if not (isinstance(self.motor_cars, int) and self.motor_cars >= 1):
-            raise ConfigError("train.motor_cars", self.motor_cars, "an integer >= 1")
+        if not isinstance(self.electric_brake, ElectricBrakeCurve):
+            raise ConfigError("train.electric_brake", self.electric_brake, "an ElectricBrakeCurve")
+        check_count(
+            "train.motor_cars", self.motor_cars, 1, allowed="an integer >= 1", error=ConfigError
+        )
 
     @property
     def effective_mass_kg(self) -> float:
