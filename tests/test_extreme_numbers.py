@@ -26,6 +26,7 @@ from typing import Any
 
 import pytest
 
+from link.helpers import KEY_FILE
 from railpilot.cosim.scenario import load_scenario as load_line_run
 from railpilot.cosim.scenario import scenario_from_mapping as line_run_from_mapping
 from railpilot.eddy.scenario import EddyScenario
@@ -57,20 +58,6 @@ LONG_DIGIT_RUN = re.compile(r"\d{31,}")
 MAX_LEAVES = 300
 SEED = 20_270_115
 
-#: the key-file layout of tests/link/test_keys.py (GOOD_FILE), with dummy keys
-KEY_TABLE = f"""
-[[train]]
-id = 1001
-active_key = 2
-[train.keys]
-1 = "{bytes(range(16)).hex()}"
-2 = "{bytes(range(16, 48)).hex()}"
-
-[[train]]
-id = 2002
-[train.keys]
-7 = "{bytes(range(32)).hex()}"
-"""
 
 Path_ = tuple[str | int, ...]
 
@@ -100,7 +87,7 @@ FILES: dict[str, Callable[[], str]] = {
         n: (LINE_DATA / n).read_text
         for n in ("heavy_haul.toml", "metro.toml", "heavy_haul_timetable.toml")
     },
-    "key table": lambda: KEY_TABLE,
+    "key table": lambda: KEY_FILE,
 }
 
 

@@ -17,6 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from bad_values import BAD
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
@@ -80,26 +81,6 @@ NOT_CHECKED: dict[str, str] = {
     "EddyResult": "an output (a run's time series)",
 }
 
-#: (id, value): none of them is a valid value of any argument, except where ALLOWED says
-BAD: list[tuple[str, object]] = [
-    ("str", "x"),
-    ("empty-str", ""),
-    ("huge-int", 10**400),
-    ("nan", float("nan")),
-    ("inf", float("inf")),
-    ("-inf", float("-inf")),
-    ("-1e300", -1e300),
-    ("None", None),
-    ("True", True),
-    ("np-bool", np.bool_(True)),
-    ("pair", (1, 2)),
-    ("None-str", [None, "x"]),
-    ("huge-None", (10**400, None)),
-    ("nan-pair", (float("nan"), 1.0)),
-    ("long-list", list(range(10_000))),
-    ("dict", {"a": 1}),
-    ("complex", 1j),
-]
 
 _NAMES = ("str", "empty-str")
 _ENDS = ("start_m", "end_m", "value")

@@ -9,6 +9,7 @@ import math
 import numpy as np
 import pytest
 
+from bad_values import BAD
 from railpilot.control import base
 from railpilot.control.fuzzy import FuzzyController, FuzzyPI
 from railpilot.control.open_loop import OpenLoop
@@ -29,26 +30,6 @@ BASE: dict[type, dict[str, object]] = {
     OpenLoop: {"level": 1},
 }
 
-#: (id, value): none of them is a valid value of any argument, except where ALLOWED says
-BAD: list[tuple[str, object]] = [
-    ("str", "x"),
-    ("empty-str", ""),
-    ("huge-int", 10**400),
-    ("nan", float("nan")),
-    ("inf", float("inf")),
-    ("-inf", float("-inf")),
-    ("-1e300", -1e300),
-    ("None", None),
-    ("True", True),
-    ("np-bool", np.bool_(True)),
-    ("pair", (1, 2)),
-    ("None-str", [None, "x"]),
-    ("huge-None", (10**400, None)),
-    ("nan-pair", (float("nan"), 1.0)),
-    ("long-list", list(range(10_000))),
-    ("dict", {"a": 1}),
-    ("complex", 1j),
-]
 
 #: (class, argument, id) of bad-looking values an argument legitimately takes
 ALLOWED: set[tuple[type, str, str]] = {

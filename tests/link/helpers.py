@@ -41,6 +41,21 @@ KEY_1 = bytes(range(32))
 KEY_2 = bytes(range(100, 132))
 OTHER_TRAIN_KEY = bytes(range(200, 232))
 
+#: a key file: two trains, one with two keys and an active key id, one with one key
+KEY_FILE = f"""
+[[train]]
+id = 1001
+active_key = 2
+[train.keys]
+1 = "{KEY_1.hex()}"
+2 = "{KEY_2.hex()}"
+
+[[train]]
+id = 2002
+[train.keys]
+7 = "{KEY_2.hex()}"
+"""
+
 FrameFilter = Callable[[list[bytes]], list[bytes]]
 
 

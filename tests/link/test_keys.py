@@ -9,21 +9,7 @@ import pytest
 
 from railpilot.link import KeyFileError, KeyStore, LinkConfigError, load_key_file
 
-from .helpers import KEY_1, KEY_2
-
-GOOD_FILE = f"""
-[[train]]
-id = 1001
-active_key = 2
-[train.keys]
-1 = "{KEY_1.hex()}"
-2 = "{KEY_2.hex()}"
-
-[[train]]
-id = 2002
-[train.keys]
-7 = "{KEY_2.hex()}"
-"""
+from .helpers import KEY_1, KEY_2, KEY_FILE
 
 
 def write_key_file(tmp_path: Path, text: str, mode: int = 0o600) -> Path:
@@ -34,7 +20,7 @@ def write_key_file(tmp_path: Path, text: str, mode: int = 0o600) -> Path:
 
 
 def test_owner_only_key_file_loads_keys_and_active_ids(tmp_path: Path) -> None:
-    store = load_key_file(write_key_file(tmp_path, GOOD_FILE))
+    store = load_key_file(write_key_file(tmp_path, KEY_FILE))
     assert store.active(1001) == (2, KEY_2)
     assert store.lookup(1001, 1) == KEY_1
     assert store.active(2002) == (7, KEY_2)  # the only key is active by default
@@ -42,7 +28,7 @@ def test_owner_only_key_file_loads_keys_and_active_ids(tmp_path: Path) -> None:
 
 @pytest.mark.parametrize("mode", [0o640, 0o604, 0o660, 0o644, 0o601])
 def test_key_file_open_to_group_or_others_is_refused(tmp_path: Path, mode: int) -> None:
-    path = write_key_file(tmp_path, GOOD_FILE, mode)
+    path = write_key_file(tmp_path, KEY_FILE, mode)
     with pytest.raises(KeyFileError, match="chmod 600") as info:
         load_key_file(path)
     assert oct(mode)[2:] in str(info.value)

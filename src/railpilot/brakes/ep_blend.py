@@ -134,7 +134,6 @@ class EPBrake:
                 f"brake.{name}",
                 getattr(self, name),
                 minimum=0.0,
-                allowed="a finite number >= 0",
                 error=ConfigError,
             )
         for name in ("jerk_limit_mps3", "fade_rate_n_per_s", "beta3"):
@@ -142,7 +141,6 @@ class EPBrake:
                 f"brake.{name}",
                 getattr(self, name),
                 positive=True,
-                allowed="a finite number > 0",
                 error=ConfigError,
             )
         check_count(

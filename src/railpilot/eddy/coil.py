@@ -67,19 +67,12 @@ class CoilParams:
 
     def __post_init__(self) -> None:
         for name, value in asdict(self).items():
-            if name == "freewheel_voltage_v":
-                allowed = "a finite number >= 0"
-            elif name == "reference_lead_a":
-                allowed = "a finite number > 0 or inf"
-            else:
-                allowed = "a finite number > 0"
             check_number(
                 f"coil.{name}",
                 value,
                 minimum=0.0,
                 positive=name != "freewheel_voltage_v",
-                allow_inf=name == "reference_lead_a",
-                allowed=allowed,
+                allow_inf=name == "reference_lead_a",  # inf: the reference unlimited
                 error=ConfigError,
             )
         if not self.reference_lead_a > self.hysteresis_band_a:

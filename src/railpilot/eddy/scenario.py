@@ -166,35 +166,23 @@ def _check_metrics(metrics: Mapping[str, float]) -> None:
         )
 
 
-def _check_demand(value: object) -> float:
+#: the run's bounded numbers: key -> (largest value, what it is, its unit); each > 0
+_RUN_BOUNDS: dict[str, tuple[float, str, str]] = {
+    "torque_demand_nm": (MAX_TORQUE_DEMAND_NM, "a torque", "N m"),
+    "initial_speed_kmh": (MAX_INITIAL_SPEED_KMH, "a speed", "km/h"),
+    "duration_s": (MAX_DURATION_S, "a time", "s"),
+}
+
+
+def _check_run_number(key: str, value: object) -> float:
+    """``value`` of the run's ``key`` in (0, its largest] (:data:`_RUN_BOUNDS`)."""
+    top, what, unit = _RUN_BOUNDS[key]
     return check_number(
-        "torque_demand_nm",
+        key,
         value,
         positive=True,
-        maximum=MAX_TORQUE_DEMAND_NM,
-        allowed=f"a torque in (0, {MAX_TORQUE_DEMAND_NM:g}] N m",
-        error=ScenarioError,
-    )
-
-
-def _check_initial_speed(value: object) -> float:
-    return check_number(
-        "initial_speed_kmh",
-        value,
-        positive=True,
-        maximum=MAX_INITIAL_SPEED_KMH,
-        allowed=f"a speed in (0, {MAX_INITIAL_SPEED_KMH:g}] km/h",
-        error=ScenarioError,
-    )
-
-
-def _check_duration(value: object) -> float:
-    return check_number(
-        "duration_s",
-        value,
-        positive=True,
-        maximum=MAX_DURATION_S,
-        allowed=f"a time in (0, {MAX_DURATION_S:g}] s",
+        maximum=top,
+        allowed=f"{what} in (0, {top:g}] {unit}",
         error=ScenarioError,
     )
 
@@ -259,9 +247,9 @@ class EddyScenario:
 
     def __post_init__(self) -> None:
         # what from_mapping checks, for a scenario built directly
-        _check_demand(self.torque_demand_nm)
-        _check_initial_speed(self.initial_speed_kmh)
-        _check_dt(self.dt_s, _check_duration(self.duration_s))
+        _check_run_number("torque_demand_nm", self.torque_demand_nm)
+        _check_run_number("initial_speed_kmh", self.initial_speed_kmh)
+        _check_dt(self.dt_s, _check_run_number("duration_s", self.duration_s))
         _check_record_every(self.record_every)
         if not isinstance(self.name, str):
             raise ScenarioError("name", self.name, "a string")
@@ -301,9 +289,15 @@ class EddyScenario:
         controller = data.get("controller", "fuzzy_pi")
         if controller not in CONTROLLERS:
             raise ScenarioError("controller", controller, "one of " + ", ".join(CONTROLLERS))
-        demand = _check_demand(_number("torque_demand_nm", data["torque_demand_nm"]))
-        speed = _check_initial_speed(_number("initial_speed_kmh", data["initial_speed_kmh"]))
-        duration = _check_duration(_number("duration_s", data.get("duration_s", 100.0)))
+        demand = _check_run_number(
+            "torque_demand_nm", _number("torque_demand_nm", data["torque_demand_nm"])
+        )
+        speed = _check_run_number(
+            "initial_speed_kmh", _number("initial_speed_kmh", data["initial_speed_kmh"])
+        )
+        duration = _check_run_number(
+            "duration_s", _number("duration_s", data.get("duration_s", 100.0))
+        )
         dt = _check_dt(_number("dt_s", data.get("dt_s", 1e-4)), duration)
         record_every = _check_record_every(
             int(_number("record_every", data.get("record_every", 10), integer=True))

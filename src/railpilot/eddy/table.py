@@ -176,9 +176,7 @@ class TorqueTable:
             ("table.max_speed_kmh", max_speed_kmh),
             ("table.speed_step_kmh", speed_step_kmh),
         ):
-            check_number(
-                name, value, positive=True, allowed="a finite number > 0", error=ConfigError
-            )
+            check_number(name, value, positive=True, error=ConfigError)
         # the table must cover the run's speeds (<= 400 km/h), not overflow round() below
         if max_speed_kmh > MAX_SPEED_KMH:
             raise ConfigError(

@@ -94,7 +94,6 @@ class EddyBrakeParams:
                 f"brake.{name}",
                 value,
                 positive=True,
-                allowed="a finite number > 0",
                 error=ConfigError,
             )
         if not self.r_outer_m > self.r_inner_m:

@@ -55,7 +55,6 @@ class TrainParams:
                 value,
                 minimum=0.0,
                 positive=positive,
-                allowed="a finite number > 0" if positive else "a finite number >= 0",
                 error=ConfigError,
             )
 

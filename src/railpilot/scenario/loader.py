@@ -620,13 +620,6 @@ def _ato(t: _Table) -> ATOModel:
     return ato
 
 
-def _holds_huge_int(value: Any) -> bool:
-    """An int no float holds (TOML's ``10**400``), alone or in a list."""
-    if isinstance(value, list):
-        return any(_holds_huge_int(v) for v in value)
-    return isinstance(value, int) and not isinstance(value, bool) and not is_finite_number(value)
-
-
 def _controller(t: _Table) -> ControllerSpec:
     kw: dict[str, Any] = {}
     t.put(kw, "name", "name", read="string")
@@ -636,10 +629,6 @@ def _controller(t: _Table) -> ControllerSpec:
             sub = t.raw(ctrl)
             if not isinstance(sub, Mapping):
                 raise ScenarioError(t.key(ctrl), sub, "a table of controller parameters")
-            for k, v in sub.items():
-                if _holds_huge_int(v):  # the controllers' numpy checks fail on it (TypeError)
-                    what = "a list of finite numbers" if isinstance(v, list) else "a finite number"
-                    raise ScenarioError(f"{t.key(ctrl)}.{k}", v, what)
             params[ctrl] = {
                 k: tuple(tuple(x) if isinstance(x, list) else x for x in v)
                 if isinstance(v, list)

@@ -21,11 +21,11 @@ MAX_LENGTH_M = 10_000.0
 
 
 def _positive(name: str, value: object) -> None:
-    check_number(name, value, positive=True, allowed="a finite number > 0", error=ConfigError)
+    check_number(name, value, positive=True, error=ConfigError)
 
 
 def _non_negative(name: str, value: object) -> None:
-    check_number(name, value, minimum=0.0, allowed="a finite number >= 0", error=ConfigError)
+    check_number(name, value, minimum=0.0, error=ConfigError)
 
 
 @dataclass(frozen=True)
