@@ -13,7 +13,8 @@ Numba's follows), so it returns the same float, to the bit, in 15-80 ns
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+
+from railpilot.jit import njit
 
 
 @njit(cache=True, inline="always")

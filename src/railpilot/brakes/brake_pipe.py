@@ -55,13 +55,13 @@ from dataclasses import dataclass
 from typing import ClassVar, Literal, NamedTuple
 
 import numpy as np
-from numba import njit
 from scipy.optimize import brentq
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.lag_delay import MAX_DELAY_STEPS, ring_back, ring_next
 from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import Num
 
 # --- params layout -------------------------------------------------------------------------

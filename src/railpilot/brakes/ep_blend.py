@@ -37,13 +37,13 @@ from dataclasses import dataclass
 from typing import Any, ClassVar
 
 import numpy as np
-from numba import njit
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.friction import BETA1, BETA2, BETA3
 from railpilot.brakes.lag_delay import ring_back, ring_next
 from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import KMH_PER_MPS, kn_to_n, n_to_kn
 
 (

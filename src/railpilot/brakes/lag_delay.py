@@ -23,11 +23,11 @@ from math import factorial
 from typing import Literal
 
 import numpy as np
-from numba import njit
 from scipy.linalg import expm
 
 from railpilot.checks import check_count, check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 
 #: longest delay line the exact method builds (80 MB of float64)
 MAX_DELAY_STEPS = 10_000_000

@@ -12,7 +12,6 @@ from dataclasses import dataclass
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.lag_delay import (
@@ -24,6 +23,7 @@ from railpilot.brakes.lag_delay import (
 )
 from railpilot.checks import check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 
 #: longest lag or delay a brake model accepts [s]
 MAX_TIME_S = 60.0

@@ -32,12 +32,12 @@ from typing import ClassVar
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake, brake_pipe_ato_step
 from railpilot.checks import check_flag, check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import kmh_to_mps
 from railpilot.vehicle.traction import (
     Locomotive,

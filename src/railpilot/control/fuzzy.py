@@ -40,7 +40,6 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import Controller, check_count, check_dt, check_limits, check_number
 from railpilot.control.pid import (
@@ -62,6 +61,7 @@ from railpilot.control.pid import (
 from railpilot.control.pid import (
     N_STATE as PID_N_STATE,
 )
+from railpilot.jit import njit
 
 # ---------------------------------------------------------------------------
 # Linguistic sets and the paper's rule tables

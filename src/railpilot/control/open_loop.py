@@ -12,9 +12,9 @@ from __future__ import annotations
 from typing import ClassVar
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_number
+from railpilot.jit import njit
 
 O_LEVEL = 0
 N_OPEN_PARAMS = 1

@@ -18,10 +18,10 @@ import math
 from typing import Any, Literal
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_limits, check_number
 from railpilot.errors import shown
+from railpilot.jit import njit
 
 # params layout
 P_KP, P_KI, P_KD, P_TF, P_LO, P_HI, P_MODE, P_KAW, P_DMEAS = range(9)

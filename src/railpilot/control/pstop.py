@@ -58,12 +58,12 @@ import math
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_limits, check_number, check_pair
 from railpilot.control.qsmc import _actuator_advance, _actuator_apply, _actuator_factors
 from railpilot.errors import shown
 from railpilot.interp import interp_at
+from railpilot.jit import njit
 
 # params layout
 (

@@ -43,7 +43,6 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import (
     Controller,
@@ -52,6 +51,7 @@ from railpilot.control.base import (
     check_limits,
     check_number,
 )
+from railpilot.jit import njit
 
 # params layout
 (

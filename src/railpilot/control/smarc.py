@@ -33,9 +33,9 @@ With ``V = theta1 s^2 / 2 + sum (theta_i_hat - theta_i)^2 / (2 gamma_i)`` (eq. 1
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import Controller, check_dt, check_limits, check_number, check_pair
+from railpilot.jit import njit
 
 (
     P_C,

@@ -33,11 +33,12 @@ from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
-from numba import cfunc, njit, objmode, types
+from numba import cfunc, objmode, types
 from numba.core.dispatcher import Dispatcher
 from numba.core.errors import NumbaError
 
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.jit_identity import same_in_every_process
 
 from .base import Controller

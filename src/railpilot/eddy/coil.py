@@ -22,10 +22,10 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from railpilot.checks import check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 
 # packed layout of the coil parameters used by the compiled loop
 C_R, C_L, C_U, C_IMAX, C_UFW, C_BAND, C_LEAD = range(7)

@@ -27,7 +27,6 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from railpilot.control.base import Controller
 from railpilot.control.fuzzy import FuzzyController, FuzzyPI, fuzzy_pi_step, fuzzy_step
@@ -46,6 +45,7 @@ from railpilot.eddy.coil import (
 from railpilot.eddy.table import TorqueTable, table_torque_nm
 from railpilot.eddy.train import TrainParams, train_step
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.sim.result import SimResult
 from railpilot.units import mps_to_kmh
 

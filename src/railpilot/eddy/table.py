@@ -25,11 +25,11 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
-from numba import njit
 
 from railpilot.checks import check_number
 from railpilot.eddy.torque_model import EddyBrakeParams, eddy_torque_at_speed_nm
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.textfile import read_text
 from railpilot.units import kmh_to_mps, mps_to_kmh
 from railpilot.vehicle.train import MAX_SPEED_KMH

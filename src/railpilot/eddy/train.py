@@ -14,11 +14,11 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from railpilot.checks import check_number
 from railpilot.eddy.torque_model import WHEEL_DIAMETER_M
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import G_MPS2, KMH_PER_MPS
 from railpilot.vehicle.resistance import davis_specific_resistance
 

@@ -31,10 +31,10 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import G_MPS2, KMH_PER_MPS
 from railpilot.vehicle.profile import FORWARD, ResistanceTable, mean_specific_resistance
 from railpilot.vehicle.resistance import davis_specific_resistance

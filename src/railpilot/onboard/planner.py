@@ -53,9 +53,9 @@ from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
-from numba import njit
 
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import G_MPS2, KMH_PER_MPS
 from railpilot.vehicle.profile import FORWARD, ResistanceTable, length_averaged_resistance
 from railpilot.vehicle.resistance import davis_specific_resistance

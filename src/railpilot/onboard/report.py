@@ -16,10 +16,10 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from numba import njit
 
 from railpilot.errors import ConfigError
 from railpilot.interp import interp_at
+from railpilot.jit import njit
 from railpilot.link.messages import PlannedCurve
 from railpilot.onboard.planner import PlannedCurve as Plan
 

@@ -31,9 +31,9 @@ from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
-from numba import njit
 
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.onboard.braking import B_DIRECTION, BrakingTrain, braking_decel, predict_braking
 from railpilot.units import KMH_PER_MPS
 from railpilot.vehicle.profile import FORWARD, ResistanceTable

@@ -27,12 +27,12 @@ from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any, TypeVar, cast
 
 import numpy as np
-from numba import njit
 
 from railpilot.brakes.ep_blend import EPBrake
 from railpilot.brakes.registry import brake_entry_of
 from railpilot.control.user import Binding, bind
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.sim import engine
 from railpilot.sim.inputs import (
     ato_brake_model,

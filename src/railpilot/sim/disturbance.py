@@ -10,9 +10,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 
 
 @dataclass(frozen=True)

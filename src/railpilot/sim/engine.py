@@ -31,9 +31,9 @@ import contextlib
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from railpilot.interp import interp_at
+from railpilot.jit import njit
 from railpilot.sim.layout import (
     A_A0,
     A_A1,

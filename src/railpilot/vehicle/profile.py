@@ -26,9 +26,9 @@ from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.vehicle.line import Line, Segment
 
 #: Direction of travel: towards increasing / decreasing position.

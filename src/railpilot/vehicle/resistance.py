@@ -6,8 +6,8 @@ from collections.abc import Callable
 from typing import Any
 
 import numpy as np
-from numba import njit
 
+from railpilot.jit import njit
 from railpilot.units import G_MPS2, KMH_PER_MPS, Num
 
 

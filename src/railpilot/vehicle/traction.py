@@ -28,10 +28,10 @@ from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
-from numba import njit
 
 from railpilot.checks import check_number
 from railpilot.errors import ConfigError
+from railpilot.jit import njit
 from railpilot.units import kmh_to_mps, kn_to_n, tonne_to_kg
 from railpilot.vehicle.train import _non_negative, _positive
 
