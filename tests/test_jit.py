@@ -9,18 +9,14 @@ process, as a user's next command is.
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
 import textwrap
 from pathlib import Path
 
 import pytest
 
+from child_process import ROOT, run_python_json
 from railpilot.jit import source_closure, source_closure_digest, watch_package
 
-ROOT = Path(__file__).resolve().parents[1]
 PACKAGE = ROOT / "src" / "railpilot"
 
 CHILD = """
@@ -65,17 +61,8 @@ def _package(tmp_path: Path, law: str) -> None:
 
 
 def _run(tmp_path: Path, mode: str) -> dict[str, float]:
-    env = os.environ | {"PYTHONDONTWRITEBYTECODE": "1"}  # no stale .pyc for the edited law
-    done = subprocess.run(
-        [sys.executable, "-c", CHILD, str(tmp_path), mode],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=ROOT,
-        env=env,
-        timeout=600,
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    # no .pyc: an edited law of the same size within the same second could load stale
+    return run_python_json(CHILD, str(tmp_path), mode, env={"PYTHONDONTWRITEBYTECODE": "1"})
 
 
 def test_numba_alone_loads_the_old_code_after_an_edit_to_an_inlined_module(

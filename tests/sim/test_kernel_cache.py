@@ -10,14 +10,10 @@ the loop there and compile nothing.
 
 from __future__ import annotations
 
-import json
-import subprocess
-import sys
-from pathlib import Path
-
 import pytest
 
-ROOT = Path(__file__).resolve().parents[2]
+from child_process import ROOT, run_python_json
+
 PAPER002 = ROOT / "examples" / "paper002_qsmc_stop.toml"
 EXAMPLE = ROOT / "examples" / "user_controller.py"
 
@@ -38,15 +34,7 @@ print(json.dumps({"hits": stats.cache_hits.total(), "misses": stats.cache_misses
 
 
 def _loop_cache_stats(*args: str) -> dict[str, int]:
-    done = subprocess.run(
-        [sys.executable, "-c", CHILD, *args],
-        capture_output=True,
-        text=True,
-        check=True,
-        cwd=ROOT,
-        timeout=600,
-    )
-    return json.loads(done.stdout.strip().splitlines()[-1])
+    return run_python_json(CHILD, *args)
 
 
 @pytest.mark.parametrize(
