@@ -11,6 +11,7 @@ import re
 import struct
 from pathlib import Path
 
+import pytest
 from playwright.sync_api import Locator, Page, expect
 
 from railpilot.link.ground import TsrState
@@ -149,3 +150,57 @@ def test_the_page_says_the_ground_is_starting_then_goes_live_by_itself(
         source.ready = True  # the page retries every second: no reload
         expect(status).to_have_text("live", timeout=SHOWN_MS)
         expect(page.locator("#trains tbody tr[data-train]")).to_have_count(24, timeout=SHOWN_MS)
+
+
+def test_the_graph_fits_its_distance_axis_to_the_trains_until_asked_for_the_whole_line(
+    page: Page, tmp_path: Path
+) -> None:
+    ground = FakeGround(2, seed=0)  # one train each way, both mid-line
+    stations = [st.name for st in ground.line.stations]
+    with serve(ground) as url:
+        page.goto(url)
+        expect(page.locator("#status")).to_have_text("live", timeout=SHOWN_MS)
+        expect(page.locator("#graph .train-label")).to_have_count(2, timeout=SHOWN_MS)
+        labels = page.locator("#graph .station-label")
+        shown = labels.all_text_contents()
+        # the stretch the two trains cover, from a station to a station: not the line's ends
+        assert 2 <= len(shown) < len(stations)
+        assert stations[0] not in shown and stations[-1] not in shown
+        assert shown == [name for name in stations if name in shown]  # in the line's order
+        span = page.locator("#graph-span")
+        expect(span).to_have_text(re.compile(r"^km \d+–\d+$"))
+        km_from, km_to = (float(v) for v in span.inner_text()[3:].split("–"))
+        # every point of every plan and run inside the plot (TD's top 20, bottom 600 - 26)
+        ys = page.eval_on_selector_all(
+            "#graph polyline",
+            "lines => lines.flatMap(l => [...l.points].map(p => p.y))",
+        )
+        assert ys and min(ys) >= 20.0 - 1e-6 and max(ys) <= 574.0 + 1e-6
+        assert max(ys) - min(ys) > 200.0  # the runs fill the axis, not a strip of it
+        page.screenshot(path=tmp_path / "fitted.png", full_page=True)
+
+        # the fake's TSR 1 (km 120-126.5, in force) lies outside the trains' stretch
+        snap = ground.snapshot(ground.now_s())
+        tsr = next(t for t in snap["tsrs"] if t["session"] == 1)
+        assert tsr["state"] == "ACTIVE" and not km_from < tsr["end_km"] <= km_to
+        band = page.locator('#graph .tsr[data-session="1"]')
+        expect(band).to_have_count(0)
+
+        page.click("#graph-whole")
+        expect(labels).to_have_count(len(stations))
+        expect(span).to_have_text("whole line")
+        expect(page.locator("#graph-whole")).to_have_attribute("aria-pressed", "true")
+        expect(band.locator("text")).to_have_text("TSR 1 · 45")
+        # its height on the axis is its 6.5 km of the line's length (the plot 554 px high)
+        top, height = band.locator("rect").evaluate(
+            "r => [r.y.baseVal.value, r.height.baseVal.value]"
+        )
+        line_km = snap["line"]["end_km"] - snap["line"]["start_km"]
+        assert height == pytest.approx(6.5 / line_km * 554.0, rel=1e-6)
+        assert top == pytest.approx(20.0 + (120.0 - snap["line"]["start_km"]) / line_km * 554.0)
+        ground.advance(1.0)  # a new snapshot keeps the dispatcher's choice
+        expect(labels).to_have_count(len(stations))
+
+        page.click("#graph-whole")
+        expect(labels).to_have_count(len(shown))
+        expect(page.locator("#graph-whole")).to_have_attribute("aria-pressed", "false")

@@ -405,16 +405,60 @@ function placeLabels(labels) {
 
 const TD = { width: 800, height: 600, left: 96, right: 44, top: 20, bottom: 26 };
 
+// The distance axis: the whole line, or (the default) the stretch the trains' plans and runs
+// in the graph's window cover, widened to a station at each end. Trains on 30 km of a
+// 590 km line drew as a few pixels at the top of the whole-line graph.
+let graphWholeLine = false;
+
+function graphSpan(snap) {
+  const line = snap.line;
+  const whole = [line.start_km, line.end_km];
+  if (graphWholeLine) return whole;
+  let lo = Infinity;
+  let hi = -Infinity;
+  for (const series of snap.graph.trains) {
+    for (const list of [series.plan, series.actual]) {
+      for (const [, km] of list) {
+        if (km < lo) lo = km;
+        if (km > hi) hi = km;
+      }
+    }
+  }
+  if (lo > hi) return whole; // nothing to draw: the whole line
+  let from = line.start_km;
+  let to = line.end_km;
+  for (const st of line.stations) {
+    if (st.km <= lo && st.km > from) from = st.km;
+    if (st.km >= hi && st.km < to) to = st.km;
+  }
+  return to > from ? [from, to] : whole;
+}
+
+function drawGraphSpan(snap, [from, to]) {
+  const whole = from <= snap.line.start_km && to >= snap.line.end_km;
+  $("graph-span").textContent = whole ? "whole line" : `km ${fmt(from, 0)}–${fmt(to, 0)}`;
+  const button = $("graph-whole");
+  button.setAttribute("aria-pressed", String(graphWholeLine));
+  button.textContent = graphWholeLine ? "Fit to the trains" : "Whole line";
+}
+
+$("graph-whole").addEventListener("click", () => {
+  graphWholeLine = !graphWholeLine;
+  if (latest) drawGraph(latest);
+});
+
 function drawGraph(snap) {
   const svg = $("graph");
   svg.setAttribute("viewBox", `0 0 ${TD.width} ${TD.height}`);
   const { from_s: t0, to_s: t1 } = snap.graph;
   const line = snap.line;
+  const [kmFrom, kmTo] = graphSpan(snap);
+  drawGraphSpan(snap, [kmFrom, kmTo]);
   const x = (t) => TD.left + (t - t0) / (t1 - t0) * (TD.width - TD.left - TD.right);
-  const y = (km) => TD.top + (km - line.start_km) / (line.end_km - line.start_km) *
-    (TD.height - TD.top - TD.bottom);
+  const y = (km) => TD.top + (km - kmFrom) / (kmTo - kmFrom) * (TD.height - TD.top - TD.bottom);
   const g = s("g", {});
   for (const st of line.stations) {
+    if (st.km < kmFrom || st.km > kmTo) continue;
     g.append(
       s("line", { class: "grid", x1: TD.left, x2: TD.width - TD.right, y1: y(st.km), y2: y(st.km) }),
       s("text", { class: "station-label", x: TD.left - 5, y: y(st.km) + 3 }, st.name),
@@ -426,6 +470,20 @@ function drawGraph(snap) {
       s("line", { class: "grid", x1: x(t), x2: x(t), y1: TD.top, y2: TD.height - TD.bottom }),
       s("text", { class: "time-label", x: x(t), y: TD.height - 8 }, hhmm(t)),
     );
+  }
+  // TSRs in force: their km over their validity, under the trains (as a train graph shows
+  // its slow orders), clipped to the window and the axis
+  for (const tsr of snap.tsrs) {
+    if (tsr.state !== "ACTIVE") continue;
+    const [ta, tb] = [Math.max(tsr.valid_from_s, t0), Math.min(tsr.valid_until_s, t1)];
+    const [ka, kb] = [Math.max(tsr.start_km, kmFrom), Math.min(tsr.end_km, kmTo)];
+    if (ta >= tb || ka >= kb) continue;
+    const band = s("g", { class: "tsr", "data-session": tsr.session });
+    band.append(
+      s("rect", { x: x(ta), y: y(ka), width: x(tb) - x(ta), height: Math.max(y(kb) - y(ka), 1) }),
+      s("text", { x: x(ta) + 3, y: y(ka) - 2 }, `TSR ${tsr.session} · ${fmt(tsr.limit_kmh, 0)}`),
+    );
+    g.append(band);
   }
   const byId = Object.fromEntries(snap.trains.map((t) => [t.id, t]));
   for (const series of snap.graph.trains) {
