@@ -12,8 +12,12 @@ from collections.abc import Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
+import pytest
+
 from net.helpers import FAST, GROUND_ID, onboard_config
+from railpilot.ground.retimer import OnlineRetimer, SectionCurve, timetabled
 from railpilot.line.loader import load_line
+from railpilot.line.model import UP
 from railpilot.link import GroundConfig, KeyStore, TravelDirection, TsrState
 from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
@@ -81,6 +85,7 @@ async def _scenario() -> None:
         assert all(t["link"]["connected"] and not t["alarms"] for t in snap["trains"])
         assert snap["blocks"]  # each train occupies a block
         assert all(g["actual"] for g in snap["graph"]["trains"])
+        assert all(g["plan"] == [] for g in snap["graph"]["trains"])  # no timetable here
 
         # a bad form: every field named, nothing sent
         answer = source.set_tsr({"start_km": "x", "limit_kmh": "fast"}, "d", source.now_s())
@@ -147,6 +152,63 @@ def test_a_train_reaching_a_tsr_later_gets_it() -> None:
             client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
             task = asyncio.create_task(client.run(stop))
             await changes.until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
+        finally:
+            stop.set()
+            async with asyncio.timeout(10.0):
+                if task is not None:
+                    await task
+                await server.stop(timeout_s=2.0)
+
+    _run(scenario())
+
+
+def _never_retimed(*_: object) -> SectionCurve:
+    raise AssertionError("nothing is re-timed here: no train reports a planned curve")
+
+
+def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetable_for() -> None:
+    async def scenario() -> None:
+        keys = KeyStore()
+        keys.add_key(2001, 1, bytes(range(32)))
+        server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+        changes = _Changes(server)
+        line = load_line("heavy-haul")
+        host = DispatchHost(server, line)
+        source = ServerSource(host)
+        now = source.now_s()
+        # stations 10 -> 11 -> 12: left 10 min ago, due at 11 in 30 min (beyond the graph's
+        # 20 min ahead), and (a minute's stand) at 12 half an hour after that
+        stops = [line.station(s).stop_m(UP) for s in (10, 11, 12)]
+        departures = [now - 600.0, now + 1860.0]
+        arrivals = [now + 1800.0, now + 3660.0]
+        train = timetabled(2001, (10, 11, 12), stops, departures, arrivals, 60.0)
+        host.dispatch.retimer = OnlineRetimer({2001: train}, _never_retimed)
+        _, port = await server.start()
+        host.start()
+        stop = asyncio.Event()
+        task = None
+        try:
+            config = onboard_config(2001, length_m=LENGTH_M, loco_number="HXD1-03", driver_id=7)
+            trajectory = Trajectory(start_m=stops[0] + 5_000.0, direction=TravelDirection.UP)
+            client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
+            task = asyncio.create_task(client.run(stop))
+
+            def graph() -> list[dict]:
+                return list(source.snapshot(source.now_s())["graph"]["trains"])
+
+            await changes.until(lambda: len(graph()) == 1 and bool(graph()[0]["actual"]))
+            snap = source.snapshot(source.now_s())
+            window_end = snap["graph"]["to_s"]
+            plan = snap["graph"]["trains"][0]["plan"]
+            share = (window_end - departures[0]) / (arrivals[0] - departures[0])  # on 10 -> 11
+            assert window_end < arrivals[0] and stops[1] - stops[0] == 30_000.0
+            assert plan == [
+                [round(departures[0], 1), stops[0] / 1000.0],
+                [
+                    round(window_end, 1),
+                    pytest.approx((stops[0] + share * 30_000.0) / 1e3, abs=5e-4),
+                ],
+            ]
         finally:
             stop.set()
             async with asyncio.timeout(10.0):

@@ -288,6 +288,11 @@ class OnlineRetimer:
         [s] (the timetable's, or the last re-timing's from where that began)."""
         return self._plan[train_id].copy()
 
+    def planned_departures(self, train_id: int) -> np.ndarray:
+        """The plan in force for ``train_id``: its departure from each station but its
+        last [s] (the timetable's, or the last re-timing's)."""
+        return self._leave[train_id].copy()
+
     def times_for(self, train_id: int) -> RunningTimes | None:
         """The running times last sent to ``train_id`` (for a train that registers)."""
         return self._sent.get(train_id)

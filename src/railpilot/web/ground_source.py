@@ -12,7 +12,9 @@ dispatch application on a running server (:class:`~railpilot.net.dispatch_host.D
   records (``TsrDelivery.state``);
 - **target points and dispatch commands**: the records' delivery books (a train's newest
   target id is in force; a clear is no target);
-- **time-distance graph**: the core's bounded history of reported head positions.
+- **time-distance graph**: the core's bounded history of reported head positions, and
+  each train's plan in force where the ground holds its timetable (a line run's ground:
+  the timetable, or the last re-timing).
 
 The form's requests go through ``DispatchHost.execute_now``: the same operation schema and
 validation as the admin port and the CLI (ground/operations.py).
@@ -276,13 +278,27 @@ class ServerSource:
                     "id": train_id,
                     "number": numbers.get(train_id, str(train_id)),
                     "direction": "unknown" if info is None else view.direction(info.direction),
-                    "plan": [],  # the live ground holds no timetable yet
+                    "plan": self._plan(train_id, start, end),
                     "actual": actual,
                 }
             )
             if k % SLICE == 0:
                 yield
         return {"from_s": start, "to_s": end, "trains": trains}
+
+    def _plan(self, train_id: int, start_s: float, end_s: float) -> list[list[float]]:
+        """The train's plan in force (its timetable, or the ground's last re-timing of it)
+        over the graph's window; none when the ground holds no timetable for it."""
+        retimer = self.dispatch.retimer
+        if retimer is None or train_id not in retimer.trains:
+            return []
+        return view.plan_path(
+            retimer.trains[train_id].stops_m,
+            retimer.planned_departures(train_id),
+            retimer.planned_arrivals(train_id),
+            start_s,
+            end_s,
+        )
 
     def _actual(self, train_id: int) -> deque[list[float]]:
         """The train's history in the page's units, each sample converted once (the core

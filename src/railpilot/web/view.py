@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import bisect
 import functools
+import itertools
 import math
 from collections.abc import Iterable, Mapping
 from typing import Any
@@ -52,6 +53,35 @@ def direction(value: TravelDirection) -> str:
 # ---------------------------------------------------------------------------- the line
 
 
+def plan_path(
+    stops_m: Iterable[float],
+    departures_s: Iterable[float],
+    arrivals_s: Iterable[float],
+    from_s: float,
+    to_s: float,
+) -> list[list[float]]:
+    """A train's plan on the time-distance graph: ``[[t, km], ...]`` through its departure
+    from each station's stop and its arrival at the next (``departures_s[j]`` from
+    ``stops_m[j]``, ``arrivals_s[j]`` at ``stops_m[j + 1]``, [s] and [m]), straight between
+    them as a timetable graph draws it, a dwell level; cut to ``[from_s, to_s]`` [s] with
+    the points at the cuts interpolated. Empty when the plan lies outside the window."""
+    stops = list(stops_m)
+    points: list[tuple[float, float]] = []
+    for j, (leave, arrive) in enumerate(zip(departures_s, arrivals_s, strict=True)):
+        points += [(float(leave), stops[j]), (float(arrive), stops[j + 1])]
+    path: list[list[float]] = []
+    for (ta, xa), (tb, xb) in itertools.pairwise(points):
+        lo, hi = max(ta, from_s), min(tb, to_s)
+        if lo > hi or tb < ta:
+            continue
+        for t in (lo, hi):
+            share = (t - ta) / (tb - ta) if tb > ta else 0.0
+            point = [round(t, 1), km(xa + (xb - xa) * share)]
+            if not path or path[-1] != point:
+                path.append(point)
+    return path
+
+
 def signal_aspects(
     line: RailLine, occupancy: Occupancy, restricted: Mapping[str, TargetReason]
 ) -> dict[str, str]:
@@ -76,7 +106,17 @@ def line_view(line: RailLine, aspects: Mapping[str, str]) -> dict[str, Any]:
         "name": line.name,
         "start_km": km(line.start_m),
         "end_km": km(line.end_m),
-        "stations": [{"id": s.id, "name": s.name, "km": km(s.centre_m)} for s in line.stations],
+        # each station's centre, and its loop (where its stops are)
+        "stations": [
+            {
+                "id": s.id,
+                "name": s.name,
+                "km": km(s.centre_m),
+                "from_km": km(s.loop_start_m),
+                "to_km": km(s.loop_end_m),
+            }
+            for s in line.stations
+        ],
         "signals": [
             {
                 "id": s.id,

@@ -406,8 +406,9 @@ function placeLabels(labels) {
 const TD = { width: 800, height: 600, left: 96, right: 44, top: 20, bottom: 26 };
 
 // The distance axis: the whole line, or (the default) the stretch the trains' plans and runs
-// in the graph's window cover, widened to a station at each end. Trains on 30 km of a
-// 590 km line drew as a few pixels at the top of the whole-line graph.
+// in the graph's window cover, widened to the loop of a station at each end (a train's stop
+// is in its station's loop, beyond the station's centre). Trains on 30 km of a 590 km line
+// drew as a few pixels at the top of the whole-line graph.
 let graphWholeLine = false;
 
 function graphSpan(snap) {
@@ -428,8 +429,8 @@ function graphSpan(snap) {
   let from = line.start_km;
   let to = line.end_km;
   for (const st of line.stations) {
-    if (st.km <= lo && st.km > from) from = st.km;
-    if (st.km >= hi && st.km < to) to = st.km;
+    if (st.from_km <= lo && st.from_km > from) from = st.from_km;
+    if (st.to_km >= hi && st.to_km < to) to = st.to_km;
   }
   return to > from ? [from, to] : whole;
 }
