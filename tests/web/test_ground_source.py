@@ -15,10 +15,10 @@ from typing import Any
 import pytest
 
 from net.helpers import FAST, GROUND_ID, onboard_config
-from railpilot.ground.retimer import OnlineRetimer, SectionCurve, timetabled
+from railpilot.ground.retimer import OnlineRetimer, RetimerSettings, SectionCurve, timetabled
 from railpilot.line.loader import load_line
 from railpilot.line.model import UP
-from railpilot.link import GroundConfig, KeyStore, TravelDirection, TsrState
+from railpilot.link import GroundConfig, KeyStore, PlannedCurve, TravelDirection, TsrState
 from railpilot.net import GroundServer, OnboardClient, Trajectory
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.web.ground_source import ServerSource
@@ -182,7 +182,9 @@ def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetab
         departures = [now - 600.0, now + 1860.0]
         arrivals = [now + 1800.0, now + 3660.0]
         train = timetabled(2001, (10, 11, 12), stops, departures, arrivals, 60.0)
-        host.dispatch.retimer = OnlineRetimer({2001: train}, _never_retimed)
+        # never off plan (a late report below must not re-time: there are no curves here)
+        settings = RetimerSettings(off_plan_s=86_400.0)
+        host.dispatch.retimer = OnlineRetimer({2001: train}, _never_retimed, settings)
         _, port = await server.start()
         host.start()
         stop = asyncio.Event()
@@ -209,6 +211,21 @@ def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetab
                     pytest.approx((stops[0] + share * 30_000.0) / 1e3, abs=5e-4),
                 ],
             ]
+            assert snap["trains"][0]["deviation_s"] is None  # no planned curve yet
+
+            # the train reports it needs 2 min more than the plan in force gives it to 11
+            remaining = arrivals[0] + 120.0 - source.now_s()
+            assert client.send(PlannedCurve(10, 11, 600.0, remaining))
+            registry = host.dispatch.registry
+            await changes.until(
+                lambda: registry.state(2001, source.now_s()).expected_arrival_s is not None
+            )
+            state = registry.state(2001, source.now_s())
+            expected = state.expected_arrival_s
+            assert state.deviation_s is None  # the registry holds no timetable
+            late = source.snapshot(source.now_s())["trains"][0]["deviation_s"]
+            assert late == round(expected - arrivals[0])
+            assert 120 <= late <= 130  # the report's 2 min, and the moment it took to arrive
         finally:
             stop.set()
             async with asyncio.timeout(10.0):
