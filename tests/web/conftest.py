@@ -30,6 +30,8 @@ TSR_FORM = {
     "valid_until_min": "90",
     "reason": "sun kink check",
 }
+#: A valid dispatch command form (text fields, as the page sends them).
+DISPATCH_FORM = {"trains": "1001, 1002", "text": "Hold at the next station for 10 min"}
 #: Longest wait for the server to start [s] (a deadline, not a sleep).
 START_DEADLINE_S = 20.0
 #: The browser tests' skip where Debian's chromium is missing.

@@ -16,7 +16,7 @@ from railpilot.link.ground import TsrState
 from railpilot.web.app import STATIC, create_app
 from railpilot.web.fake import FakeGround
 
-from .conftest import STARTING, TOKEN, TSR_FORM, StartingGround
+from .conftest import DISPATCH_FORM, STARTING, TOKEN, TSR_FORM, StartingGround
 
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 
@@ -98,12 +98,18 @@ def test_a_red_signal_protects_a_block_that_is_not_free(client: TestClient) -> N
     ids=["none", "wrong", "not bearer"],
 )
 def test_writing_without_the_token_is_401(client: TestClient, headers: dict[str, str]) -> None:
-    for url in ("/api/tsr", "/api/tsr/1/cancel"):
-        response = client.post(url, json=TSR_FORM, headers=headers)
+    for url, form in (
+        ("/api/tsr", TSR_FORM),
+        ("/api/tsr/1/cancel", {}),
+        ("/api/dispatch", DISPATCH_FORM),
+    ):
+        response = client.post(url, json=form, headers=headers)
         assert response.status_code == 401
         assert response.headers["www-authenticate"] == "Bearer"
         assert "token" in response.json()["errors"]
-    assert [t["session"] for t in client.get("/api/snapshot").json()["tsrs"]] == [1]
+    snap = client.get("/api/snapshot").json()
+    assert [t["session"] for t in snap["tsrs"]] == [1]
+    assert DISPATCH_FORM["text"] not in {row["text"] for row in snap["dispatch"]}
 
 
 def test_a_short_token_is_refused() -> None:
@@ -224,6 +230,7 @@ def test_a_source_that_is_starting_is_503_and_closes_the_websocket(ground: FakeG
             client.get("/api/snapshot"),
             client.post("/api/tsr", json=TSR_FORM, headers=AUTH),
             client.post("/api/tsr/1/cancel", headers=AUTH),
+            client.post("/api/dispatch", json=DISPATCH_FORM, headers=AUTH),
         ):
             assert response.status_code == 503 and response.json() == starting
             assert response.headers["retry-after"] == "1"
@@ -235,3 +242,49 @@ def test_a_source_that_is_starting_is_503_and_closes_the_websocket(ground: FakeG
         assert client.get("/api/snapshot").json()["version"] == ground.version()
         with client.websocket_connect("/ws") as ws:
             assert ws.receive_json()["version"] == ground.version()
+
+
+# --- dispatch commands
+
+
+def test_a_dispatch_command_goes_to_each_train_named(
+    client: TestClient, ground: FakeGround
+) -> None:
+    before = client.get("/api/snapshot").json()["dispatch"]
+    response = client.post("/api/dispatch", json=DISPATCH_FORM, headers=AUTH)
+    assert response.status_code == 200, response.text
+    number = response.json()["ok"]["command"]
+    assert response.json()["ok"]["trains"] == [1001, 1002]
+    assert number == max(row["command"] for row in before) + 1
+    rows = [r for r in client.get("/api/snapshot").json()["dispatch"] if r["command"] == number]
+    assert [(r["train"], r["text"], r["state"]) for r in rows] == [
+        (1001, DISPATCH_FORM["text"], "PENDING"),
+        (1002, DISPATCH_FORM["text"], "PENDING"),
+    ]
+
+
+def test_a_dispatch_command_to_all_goes_to_every_train(client: TestClient) -> None:
+    response = client.post("/api/dispatch", json={"trains": "all", "text": "x"}, headers=AUTH)
+    assert response.status_code == 200, response.text
+    assert len(response.json()["ok"]["trains"]) == 24
+
+
+@pytest.mark.parametrize(
+    ("form", "field", "says"),
+    [
+        ({"trains": "", "text": "hold"}, "trains", "a list of train ids"),
+        ({"trains": "K101", "text": "hold"}, "trains", "a list of train ids"),
+        ({"trains": "9999", "text": "hold"}, "trains", "ids of trains on the line (1001-1024)"),
+        ({"trains": "1001", "text": ""}, "text", "text"),
+        ({"trains": "1001", "text": "x" * 1001}, "text", "at most 1000"),
+        ({"trains": "1001"}, "text", ""),
+        ({"trains": "1001", "text": "hold", "when": "now"}, "when", "not a field of dispatch"),
+    ],
+)
+def test_a_bad_dispatch_command_is_422_naming_the_field_and_sends_nothing(
+    client: TestClient, form: dict[str, str], field: str, says: str
+) -> None:
+    before = client.get("/api/snapshot").json()["dispatch"]
+    errors = _errors(client.post("/api/dispatch", json=form, headers=AUTH))
+    assert field in errors and says in errors[field], errors
+    assert client.get("/api/snapshot").json()["dispatch"] == before

@@ -204,3 +204,36 @@ def test_the_graph_fits_its_distance_axis_to_the_trains_until_asked_for_the_whol
         page.click("#graph-whole")
         expect(labels).to_have_count(len(shown))
         expect(page.locator("#graph-whole")).to_have_attribute("aria-pressed", "false")
+
+
+def test_dispatcher_sends_a_command_and_watches_each_train_acknowledge_it(
+    served: Served, page: Page
+) -> None:
+    ground = served.ground
+    _open(page, served)
+    page.click("#dispatch-submit")  # no token yet: nothing sent
+    expect(page.locator("#err-token")).to_contain_text("token first")
+
+    _enter_token(page)
+    page.fill("#fd-trains", "1001, K1002")
+    page.fill("#fd-text", "Hold at the next station")
+    page.click("#dispatch-submit")
+    expect(page.locator("#errd-trains")).to_contain_text("'1001, K1002' is not allowed")
+    expect(page.locator("#fd-trains")).to_have_attribute("aria-invalid", "true")
+    expect(page.locator("#errd-text")).to_have_text("")
+
+    page.fill("#fd-trains", "1001, 1002")
+    page.click("#dispatch-submit")
+    expect(page.locator("#dispatch-result")).to_contain_text("sent to 2 train(s)")
+    expect(page.locator("#errd-trains")).to_have_text("")
+    number = max(row["command"] for row in ground.snapshot(ground.now_s())["dispatch"])
+    rows = [
+        page.locator(f'#dispatch tr[data-command="{number}"][data-train="{train}"]')
+        for train in (1001, 1002)
+    ]
+    for row in rows:
+        expect(row).to_contain_text("Hold at the next station", timeout=SHOWN_MS)
+        expect(row.locator(".chip")).to_have_text("PENDING")
+    ground.advance(6.0)  # every acknowledgement is back 1 to 5 s after the delivery
+    for row in rows:
+        expect(row.locator(".chip")).to_have_text("ACKNOWLEDGED", timeout=SHOWN_MS)

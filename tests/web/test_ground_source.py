@@ -119,6 +119,20 @@ async def _scenario() -> None:
             lambda: all(source.delivery_state(1, t) is TsrState.CANCELLED for t in CONCERNED)
         )
         assert source.snapshot(source.now_s())["tsrs"][0]["state"] == "CANCELLED"
+
+        # a dispatch command from the page's form, through the same schema as the admin port
+        bad = source.send_dispatch({"trains": "K2001", "text": "hold"}, "d", source.now_s())
+        assert "trains" in bad["errors"] and not source.snapshot(source.now_s())["dispatch"]
+        sent = source.send_dispatch({"trains": "2001", "text": "hold"}, "d", source.now_s())
+        assert sent["ok"]["trains"] == [2001]
+
+        def command_rows() -> list[tuple[int, int, str, str]]:
+            rows = source.snapshot(source.now_s())["dispatch"]
+            return [(r["command"], r["train"], r["text"], r["state"]) for r in rows]
+
+        await changes.until(
+            lambda: command_rows() == [(sent["ok"]["command"], 2001, "hold", "ACKNOWLEDGED")]
+        )
     finally:
         stop.set()
         async with asyncio.timeout(10.0):

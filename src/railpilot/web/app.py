@@ -1,8 +1,9 @@
 """The dispatcher dashboard: a Starlette app over a :class:`DashboardSource` (docs/dashboard.md).
 
 A thin adapter (DESIGN habit 2): it serves the page, asks the source for snapshots, hands
-the TSR form to it and pushes snapshots over a WebSocket. It decides nothing about trains
-or TSRs; the only clock it reads is the event loop's, to pace the pushes.
+the TSR and dispatch command forms to it and pushes snapshots over a WebSocket. It decides
+nothing about trains or TSRs; the only clock it reads is the event loop's, to pace the
+pushes.
 
 Routes
 ------
@@ -10,6 +11,7 @@ Routes
 - ``GET /api/snapshot``: the current snapshot (JSON; the shared one the pushes send, below);
 - ``POST /api/tsr``: set a TSR from the form's fields (JSON object);
 - ``POST /api/tsr/{session}/cancel``: cancel a TSR;
+- ``POST /api/dispatch``: send a dispatch command from the form's fields (JSON object);
 - ``WS /ws``: a snapshot when the source's version changes, and at least every second.
 
 What the pushes cost the ground: the app runs in the ground server's event loop
@@ -35,11 +37,11 @@ tool can see what the page costs the ground's event loop (``railpilot link loadt
 
 A source may not be ready to be shown yet: the live ground's, until it has restored from
 its store (web/ground_source.py). While its optional ``starting()`` gives a reason, the
-snapshot and the two ``POST`` routes answer 503 with ``{"errors": {"ground": reason}}`` and
+snapshot and the ``POST`` routes answer 503 with ``{"errors": {"ground": reason}}`` and
 ``Retry-After``, and the WebSocket closes with code 1013 (try again later) and the reason,
 which the page shows while it retries; the page and its files are served all along.
 
-The two ``POST`` routes need ``Authorization: Bearer <token>`` (else 401); a rejected form
+The ``POST`` routes need ``Authorization: Bearer <token>`` (else 401); a rejected form
 is 422 with ``{"errors": {field: message}}``. Reading needs no token: the page binds to
 127.0.0.1 by default (:data:`DEFAULT_HOST`), answers only to the host names in
 ``allowed_hosts`` (against DNS rebinding) and refuses a WebSocket opened by another
@@ -54,7 +56,7 @@ import hmac
 import json
 import threading
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
@@ -243,7 +245,8 @@ def create_app(
         _, text = await shared.text(source.version())
         return Response(text, media_type="application/json")
 
-    async def set_tsr(request: Request) -> Response:
+    async def form(request: Request, handle: Callable[..., dict[str, Any]]) -> Response:
+        """A form's request: the token, the source ready, a JSON object; ``handle``'s answer."""
         if not authorized(request):
             return unauthorized()
         if (refused := unavailable()) is not None:
@@ -253,7 +256,13 @@ def create_app(
             return error
         if not isinstance(fields, dict):
             return _json({"errors": {"form": "expected a JSON object of the form's fields"}}, 422)
-        return answer(source.set_tsr(fields, actor, source.now_s()))
+        return answer(handle(fields, actor, source.now_s()))
+
+    async def set_tsr(request: Request) -> Response:
+        return await form(request, source.set_tsr)
+
+    async def send_dispatch(request: Request) -> Response:
+        return await form(request, source.send_dispatch)
 
     async def cancel_tsr(request: Request) -> Response:
         if not authorized(request):
@@ -317,6 +326,7 @@ def create_app(
             Route("/api/snapshot", snapshot),
             Route("/api/tsr", set_tsr, methods=["POST"]),
             Route("/api/tsr/{session}/cancel", cancel_tsr, methods=["POST"]),
+            Route("/api/dispatch", send_dispatch, methods=["POST"]),
             WebSocketRoute("/ws", updates),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

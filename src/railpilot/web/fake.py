@@ -50,7 +50,13 @@ from typing import Any
 
 from railpilot.errors import ConfigError
 from railpilot.ground.occupancy import TrainReport, compute_occupancy
-from railpilot.ground.operations import OperationError, SetTsr, config_error_field, parse_operation
+from railpilot.ground.operations import (
+    OperationError,
+    SendDispatch,
+    SetTsr,
+    config_error_field,
+    parse_operation,
+)
 from railpilot.ground.registry import TrainRegistry
 from railpilot.ground.targets import DeclaredRestriction, TargetPointTracker, restricted_blocks
 from railpilot.ground.tsr_manager import (
@@ -296,9 +302,16 @@ class FakeGround:
             train.train_id, f"Section fault in block {block.id}: stop at signal {signal}, wait."
         )
 
-    def _send_command(self, train_id: int, text: str) -> None:
-        number = len(self._commands) + 1
-        self._commands.append((number, train_id, text, _Delivery(DeliveryState.PENDING, self._now)))
+    def _send_command(self, train_id: int, text: str) -> int:
+        return self._send_commands((train_id,), text)
+
+    def _send_commands(self, train_ids: tuple[int, ...], text: str) -> int:
+        """One command to each of ``train_ids`` (one number, a delivery each): its number."""
+        number = max((n for n, *_ in self._commands), default=0) + 1
+        for train_id in train_ids:
+            pending = _Delivery(DeliveryState.PENDING, self._now)
+            self._commands.append((number, train_id, text, pending))
+        return number
 
     def _step_to(self, until_s: float, step_s: float) -> None:
         while self._now < until_s - 1e-9:
@@ -532,6 +545,23 @@ class FakeGround:
             self._carry_out(self._tsrs.cancel(session, now_s))
             self._version += 1
             return {"ok": self._tsr_view(tsr)}
+
+    def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
+        with self._lock:
+            try:
+                op = parse_operation("dispatch", fields, line=self.line, now_s=now_s)
+            except OperationError as exc:
+                return {"errors": exc.errors}
+            assert isinstance(op, SendDispatch)
+            trains = op.trains or tuple(sorted(self._trains))
+            unknown = [t for t in trains if t not in self._trains]
+            if unknown:
+                ids = f"{min(self._trains)}-{max(self._trains)}"
+                message = f"{unknown!r} is not allowed: expected ids of trains on the line ({ids})"
+                return {"errors": {"trains": message}}
+            number = self._send_commands(trains, op.text)
+            self._version += 1
+            return {"ok": {"command": number, "trains": list(trains)}}
 
     # ------------------------------------------------------------------ what the page sees
 

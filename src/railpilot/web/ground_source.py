@@ -17,7 +17,8 @@ dispatch application on a running server (:class:`~railpilot.net.dispatch_host.D
   each train's plan in force where the ground holds its timetable (a line run's ground:
   the timetable, or the last re-timing).
 
-The form's requests go through ``DispatchHost.execute_now``: the same operation schema and
+The forms' requests (a TSR, its cancel, a dispatch command) go through
+``DispatchHost.execute_now``: the same operation schema and
 validation as the admin port and the CLI (ground/operations.py).
 
 Threading: the server is not thread-safe, so the source must be used on the server's
@@ -128,6 +129,13 @@ class ServerSource:
         except OperationError as exc:
             return {"errors": exc.errors}
         return {"ok": self._tsr_view(tsr)}
+
+    def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
+        try:
+            result = self.host.execute_now("dispatch", fields, actor)
+        except OperationError as exc:
+            return {"errors": exc.errors}
+        return {"ok": {"command": result["command"], "trains": result["trains"]}}
 
     # ------------------------------------------------------------------ the snapshot
 

@@ -1,8 +1,9 @@
 """What the dashboard reads and asks of the ground: the :class:`DashboardSource` protocol.
 
 The web app (app.py) is a thin adapter: it asks a source for JSON-ready snapshots, hands
-the dispatcher's TSR form to it and pushes the snapshots over a WebSocket. The source owns
-the ground's state and its clock; the app never interprets a snapshot. Two sources exist:
+the dispatcher's TSR and dispatch command forms to it and pushes the snapshots over a
+WebSocket. The source owns the ground's state and its clock; the app never interprets a
+snapshot. Two sources exist:
 
 - :class:`railpilot.web.fake.FakeGround`: a deterministic line full of trains, for the
   tests and the screenshot demo;
@@ -55,6 +56,11 @@ TSR_FORM_FIELDS = (
 )
 
 
+#: The dispatch command form's fields: those of the ground's ``dispatch`` operation, the
+#: train ids (``"101, 102"``, or ``"all"``: every train that has registered) and the text.
+DISPATCH_FORM_FIELDS = ("trains", "text")
+
+
 @runtime_checkable
 class DashboardSource(Protocol):
     """The ground as the dashboard sees it (module docstring).
@@ -90,4 +96,11 @@ class DashboardSource(Protocol):
 
     def cancel_tsr(self, session: int, actor: str, now_s: float) -> dict[str, Any]:
         """Cancel TSR ``session``: ``{"ok": {tsr view}}`` or ``{"errors": {"session": ...}}``."""
+        ...
+
+    def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
+        """Validate and send a dispatch command from the form's ``fields``
+        (:data:`DISPATCH_FORM_FIELDS`): ``{"ok": {"command": number, "trains": [id, ...]}}``
+        or ``{"errors": {field: message}}``. Each train acknowledges it on its own; the
+        snapshot's ``dispatch`` rows show where each delivery stands."""
         ...

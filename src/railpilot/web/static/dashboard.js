@@ -7,6 +7,7 @@
 const SVGNS = "http://www.w3.org/2000/svg";
 const TOKEN_KEY = "railpilot.dispatcherToken";
 const FIELDS = ["start_km", "end_km", "limit_kmh", "valid_from_min", "valid_until_min", "reason"];
+const DISPATCH_FIELDS = ["trains", "text"];
 const STALE_AFTER_S = 3; // no push for this long: say so
 const MAX_ALARMS_SHOWN = 100; // alarms listed one by one; the rest are counted
 const LABEL_CHAR_PX = 6.6; // width of a character of a train's label on the line diagram
@@ -164,17 +165,49 @@ async function post(url, body) {
   return { status: response.status, data };
 }
 
-function showErrors(errors) {
-  for (const name of [...FIELDS, "form", "token"]) {
+// A form's fields and where its inputs and their errors are (the token's error is shared).
+const TSR_FORM = { fields: FIELDS, input: "f-", error: "err-" };
+const DISPATCH_FORM = { fields: DISPATCH_FIELDS, input: "fd-", error: "errd-" };
+
+function showErrors(errors, form = TSR_FORM) {
+  const errorOf = (name) => $(name === "token" ? "err-token" : `${form.error}${name}`);
+  for (const name of [...form.fields, "form", "token"]) {
     const message = (errors && errors[name]) || "";
-    $(`err-${name}`).textContent = message;
-    const input = $(`f-${name}`);
+    errorOf(name).textContent = message;
+    const input = $(`${form.input}${name}`);
     if (input) input.setAttribute("aria-invalid", message ? "true" : "false");
   }
-  const known = new Set([...FIELDS, "form", "token"]);
+  const known = new Set([...form.fields, "form", "token"]);
   const other = Object.entries(errors || {}).filter(([k]) => !known.has(k));
-  if (other.length) $("err-form").textContent = other.map(([k, v]) => `${k}: ${v}`).join("; ");
+  if (other.length) errorOf("form").textContent = other.map(([k, v]) => `${k}: ${v}`).join("; ");
 }
+
+$("dispatch-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  $("dispatch-result").textContent = "";
+  if (!token()) {
+    showErrors({ token: "enter the dispatcher token first" }, DISPATCH_FORM);
+    return;
+  }
+  const fields = {};
+  for (const name of DISPATCH_FIELDS) fields[name] = $(`fd-${name}`).value;
+  $("dispatch-submit").disabled = true;
+  try {
+    const { status, data } = await post("/api/dispatch", fields);
+    if (status === 200 && data.ok) {
+      showErrors({}, DISPATCH_FORM);
+      $("dispatch-result").textContent = `Command ${data.ok.command} sent to ` +
+        `${data.ok.trains.length} train(s)`;
+      $("fd-text").value = "";
+    } else {
+      showErrors(data.errors || { form: `the server answered ${status}` }, DISPATCH_FORM);
+    }
+  } catch (error) {
+    showErrors({ form: `could not reach the server: ${error}` }, DISPATCH_FORM);
+  } finally {
+    $("dispatch-submit").disabled = false;
+  }
+});
 
 $("tsr-form").addEventListener("submit", async (event) => {
   event.preventDefault();
@@ -581,7 +614,7 @@ function drawDispatch(snap) {
   }));
   syncTable($("targets"), targets,
     h("tr", {}, h("td", { colspan: 5, class: "muted" }, "no train held by a red signal")));
-  const commands = snap.dispatch.slice().reverse().map((c) => h("tr", { "data-command": c.command },
+  const commands = snap.dispatch.slice().reverse().map((c) => h("tr", { "data-command": c.command, "data-train": c.train },
     h("td", { class: "num" }, c.command),
     h("td", {}, h("b", {}, c.number)),
     h("td", {}, c.text),
