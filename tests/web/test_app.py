@@ -63,7 +63,8 @@ def test_snapshot_has_every_part_in_the_dispatchers_units(client: TestClient) ->
     assert response.status_code == 200
     snap = response.json()
     assert set(snap) == {
-        "now_s", "version", "line", "blocks", "trains", "tsrs", "dispatch", "graph", "alarms",
+        "now_s", "version", "line", "blocks", "trains", "tsrs", "restrictions", "dispatch",
+        "graph", "alarms",
     }  # fmt: skip
     line = snap["line"]
     assert (line["name"], line["start_km"], line["end_km"]) == ("heavy-haul", 0.0, 590.0)
@@ -78,6 +79,15 @@ def test_snapshot_has_every_part_in_the_dispatchers_units(client: TestClient) ->
     assert {t["direction"] for t in snap["trains"]} == {"up", "down"}
     assert {a["kind"] for a in snap["alarms"]} == {"link", "overspeed"}
     assert [t["session"] for t in snap["tsrs"]] == [1]
+    # the fake's section fault: one block, whose blocks are the restricted ones
+    (fault,) = snap["restrictions"]
+    assert fault["reason"] == "section_fault" and fault["blocks"] == [fault["block"]]
+    restricted = [b for b in snap["blocks"] if b["state"] == "restricted"]
+    assert [b["id"] for b in restricted] == fault["blocks"]
+    assert (fault["start_km"], fault["end_km"]) == (
+        restricted[0]["start_km"],
+        restricted[0]["end_km"],
+    )
     assert len(snap["graph"]["trains"]) == 24
     json.dumps(snap, allow_nan=False)  # strict JSON: the page's JSON.parse reads it
 
@@ -102,6 +112,8 @@ def test_writing_without_the_token_is_401(client: TestClient, headers: dict[str,
         ("/api/tsr", TSR_FORM),
         ("/api/tsr/1/cancel", {}),
         ("/api/dispatch", DISPATCH_FORM),
+        ("/api/restriction", {"reason": "section_fault", "block": "up-040"}),
+        ("/api/restriction/1/clear", {}),
     ):
         response = client.post(url, json=form, headers=headers)
         assert response.status_code == 401
@@ -231,6 +243,8 @@ def test_a_source_that_is_starting_is_503_and_closes_the_websocket(ground: FakeG
             client.post("/api/tsr", json=TSR_FORM, headers=AUTH),
             client.post("/api/tsr/1/cancel", headers=AUTH),
             client.post("/api/dispatch", json=DISPATCH_FORM, headers=AUTH),
+            client.post("/api/restriction", json={"reason": "section_fault"}, headers=AUTH),
+            client.post("/api/restriction/1/clear", headers=AUTH),
         ):
             assert response.status_code == 503 and response.json() == starting
             assert response.headers["retry-after"] == "1"
@@ -288,3 +302,69 @@ def test_a_bad_dispatch_command_is_422_naming_the_field_and_sends_nothing(
     errors = _errors(client.post("/api/dispatch", json=form, headers=AUTH))
     assert field in errors and says in errors[field], errors
     assert client.get("/api/snapshot").json()["dispatch"] == before
+
+
+# --- declared restrictions
+
+
+def test_a_restriction_on_a_km_span_holds_its_blocks_at_red_until_cleared(
+    client: TestClient,
+) -> None:
+    form = {"reason": "switch_indication_lost", "start_km": "250", "end_km": "251", "track": "up"}
+    response = client.post("/api/restriction", json=form, headers=AUTH)
+    assert response.status_code == 200, response.text
+    declared = response.json()["ok"]
+    assert (declared["reason"], declared["block"], declared["track"]) == (
+        "switch_indication_lost",
+        None,
+        "up",
+    )
+    assert (declared["start_km"], declared["end_km"]) == (250.0, 251.0)
+    snap = client.get("/api/snapshot").json()
+    up_blocks = {b["id"]: b for b in snap["blocks"] if b["direction"] == "up"}
+    # every block it holds is an UP block sharing more than a point with km 250-251
+    assert declared["blocks"]
+    for block_id in declared["blocks"]:
+        block = up_blocks[block_id]
+        assert block["state"] == "restricted"
+        assert block["start_km"] < 251.0 and block["end_km"] > 250.0
+    signals = {s["block"]: s["aspect"] for s in snap["line"]["signals"] if s["block"]}
+    assert all(signals[b] == "red" for b in declared["blocks"] if b in signals)
+    assert declared["id"] in {r["id"] for r in snap["restrictions"]}
+
+    cleared = client.post(f"/api/restriction/{declared['id']}/clear", headers=AUTH)
+    assert cleared.json() == {"ok": {"id": declared["id"]}}
+    snap = client.get("/api/snapshot").json()
+    assert declared["id"] not in {r["id"] for r in snap["restrictions"]}
+    still = {b["id"] for b in snap["blocks"] if b["state"] == "restricted"}
+    assert not still & set(declared["blocks"])
+    assert "id" in _errors(client.post(f"/api/restriction/{declared['id']}/clear", headers=AUTH))
+
+
+@pytest.mark.parametrize(
+    ("form", "field", "says"),
+    [
+        ({"reason": "rain", "block": "up-040"}, "reason", "section_fault"),
+        ({"reason": "section_fault"}, "block", "either a block section id or start_km"),
+        ({"reason": "section_fault", "block": "up-040", "start_km": "1", "end_km": "2"}, "block",
+         "not both"),
+        ({"reason": "section_fault", "block": "Z9"}, "block", "a block section of line"),
+        ({"reason": "section_fault", "start_km": "251", "end_km": "250"}, "end_km", "above"),
+        ({"reason": "section_fault", "start_km": "1", "end_km": "2", "track": "left"}, "track",
+         "up"),
+        ({"reason": "section_fault", "start_km": "x", "end_km": "2"}, "start_km", "'x'"),
+        ({"reason": "section_fault", "block": "up-040", "when": "now"}, "when", "not a field"),
+    ],
+)  # fmt: skip
+def test_a_bad_restriction_is_422_naming_the_field_and_changes_nothing(
+    client: TestClient, form: dict[str, str], field: str, says: str
+) -> None:
+    before = client.get("/api/snapshot").json()["restrictions"]
+    errors = _errors(client.post("/api/restriction", json=form, headers=AUTH))
+    assert field in errors and says in errors[field], errors
+    assert client.get("/api/snapshot").json()["restrictions"] == before
+
+
+def test_clearing_an_unknown_restriction_is_422(client: TestClient) -> None:
+    assert "id" in _errors(client.post("/api/restriction/99/clear", headers=AUTH))
+    assert "id" in _errors(client.post("/api/restriction/x/clear", headers=AUTH))

@@ -237,3 +237,37 @@ def test_dispatcher_sends_a_command_and_watches_each_train_acknowledge_it(
     ground.advance(6.0)  # every acknowledgement is back 1 to 5 s after the delivery
     for row in rows:
         expect(row.locator(".chip")).to_have_text("ACKNOWLEDGED", timeout=SHOWN_MS)
+
+
+def test_dispatcher_declares_a_section_fault_and_clears_it_after_confirming(
+    served: Served, page: Page
+) -> None:
+    _open(page, served)
+    _enter_token(page)
+    rows = page.locator("#restrictions tbody tr[data-restriction]")
+    expect(rows).to_have_count(1)  # the fake's own section fault
+    page.select_option("#fr-reason", "switch_indication_lost")
+    page.fill("#fr-start_km", "251")
+    page.fill("#fr-end_km", "250")
+    page.click("#restriction-submit")
+    expect(page.locator("#errr-end_km")).to_contain_text("above start_km")
+    expect(page.locator("#fr-end_km")).to_have_attribute("aria-invalid", "true")
+
+    page.fill("#fr-end_km", "252")
+    page.select_option("#fr-track", "up")
+    page.click("#restriction-submit")
+    expect(page.locator("#restriction-result")).to_contain_text("declared")
+    expect(rows).to_have_count(2)
+    row = rows.nth(1)
+    expect(row).to_contain_text("switch indication lost")
+    expect(row).to_contain_text("km 251.000–252.000")
+    held = row.locator("td").nth(4).inner_text().split(", ")
+    for block in held:  # its blocks drawn restricted on the line diagram
+        expect(page.locator(f'#line [data-block="{block}"].restricted')).not_to_have_count(0)
+
+    row.locator("button").click()
+    expect(row.locator("button")).to_have_text("Confirm clear")
+    expect(rows).to_have_count(2)  # one click asks again
+    row.locator("button").click()
+    expect(rows).to_have_count(1, timeout=SHOWN_MS)
+    expect(page.locator("#restriction-result")).to_contain_text("cleared")

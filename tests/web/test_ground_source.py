@@ -120,6 +120,22 @@ async def _scenario() -> None:
         )
         assert source.snapshot(source.now_s())["tsrs"][0]["state"] == "CANCELLED"
 
+        # a restriction declared and cleared from the page's form, on the core
+        bad = source.set_restriction({"reason": "section_fault"}, "d", source.now_s())
+        assert "block" in bad["errors"] and not host.dispatch.restrictions
+        form = {"reason": "section_fault", "start_km": 300, "end_km": 301, "track": "down"}
+        declared = source.set_restriction(form, "d", source.now_s())["ok"]
+        assert declared["track"] == "down" and declared["blocks"]
+        snap = source.snapshot(source.now_s())
+        assert snap["restrictions"] == [declared]
+        held = {b["id"] for b in snap["blocks"] if b["state"] == "restricted"}
+        assert held == set(declared["blocks"])
+        assert source.clear_restriction(declared["id"], "d", source.now_s()) == {
+            "ok": {"id": declared["id"]}
+        }
+        assert not source.snapshot(source.now_s())["restrictions"]
+        assert "id" in source.clear_restriction(declared["id"], "d", source.now_s())["errors"]
+
         # a dispatch command from the page's form, through the same schema as the admin port
         bad = source.send_dispatch({"trains": "K2001", "text": "hold"}, "d", source.now_s())
         assert "trains" in bad["errors"] and not source.snapshot(source.now_s())["dispatch"]

@@ -1,7 +1,7 @@
 """The dispatcher dashboard: a Starlette app over a :class:`DashboardSource` (docs/dashboard.md).
 
 A thin adapter (DESIGN habit 2): it serves the page, asks the source for snapshots, hands
-the TSR and dispatch command forms to it and pushes snapshots over a WebSocket. It decides
+the dispatcher's forms to it and pushes snapshots over a WebSocket. It decides
 nothing about trains or TSRs; the only clock it reads is the event loop's, to pace the
 pushes.
 
@@ -12,6 +12,8 @@ Routes
 - ``POST /api/tsr``: set a TSR from the form's fields (JSON object);
 - ``POST /api/tsr/{session}/cancel``: cancel a TSR;
 - ``POST /api/dispatch``: send a dispatch command from the form's fields (JSON object);
+- ``POST /api/restriction``: declare a restriction (a section fault, a lost switch
+  indication) from the form's fields; ``POST /api/restriction/{id}/clear``: clear it;
 - ``WS /ws``: a snapshot when the source's version changes, and at least every second.
 
 What the pushes cost the ground: the app runs in the ground server's event loop
@@ -264,15 +266,27 @@ def create_app(
     async def send_dispatch(request: Request) -> Response:
         return await form(request, source.send_dispatch)
 
-    async def cancel_tsr(request: Request) -> Response:
+    async def set_restriction(request: Request) -> Response:
+        return await form(request, source.set_restriction)
+
+    async def clear_restriction(request: Request) -> Response:
+        return await numbered(request, "id", "a restriction id", source.clear_restriction)
+
+    async def numbered(
+        request: Request, field: str, what: str, handle: Callable[..., dict[str, Any]]
+    ) -> Response:
+        """A request about one numbered thing (``field`` in the path): ``handle``'s answer."""
         if not authorized(request):
             return unauthorized()
         if (refused := unavailable()) is not None:
             return refused
-        raw = request.path_params["session"]
+        raw = request.path_params[field]
         if not raw.isdigit() or not 1 <= int(raw) <= 0xFFFF_FFFF:
-            return _json({"errors": {"session": f"{raw!r} is not a TSR session number"}}, 422)
-        return answer(source.cancel_tsr(int(raw), actor, source.now_s()))
+            return _json({"errors": {field: f"{raw!r} is not {what}"}}, 422)
+        return answer(handle(int(raw), actor, source.now_s()))
+
+    async def cancel_tsr(request: Request) -> Response:
+        return await numbered(request, "session", "a TSR session number", source.cancel_tsr)
 
     async def updates(websocket: WebSocket) -> None:
         origin = websocket.headers.get("origin")
@@ -327,6 +341,8 @@ def create_app(
             Route("/api/tsr", set_tsr, methods=["POST"]),
             Route("/api/tsr/{session}/cancel", cancel_tsr, methods=["POST"]),
             Route("/api/dispatch", send_dispatch, methods=["POST"]),
+            Route("/api/restriction", set_restriction, methods=["POST"]),
+            Route("/api/restriction/{id}/clear", clear_restriction, methods=["POST"]),
             WebSocketRoute("/ws", updates),
             Mount("/static", StaticFiles(directory=STATIC), name="static"),
         ],

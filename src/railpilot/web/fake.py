@@ -53,6 +53,7 @@ from railpilot.ground.occupancy import TrainReport, compute_occupancy
 from railpilot.ground.operations import (
     OperationError,
     SendDispatch,
+    SetRestriction,
     SetTsr,
     config_error_field,
     parse_operation,
@@ -186,7 +187,8 @@ class FakeGround:
         self._tsr_book: dict[tuple[int, int], _TsrDelivery] = {}  # (session, train)
         self._target_book: dict[int, tuple[int, _Delivery]] = {}  # train -> (target id, ...)
         self._commands: list[tuple[int, int, str, _Delivery]] = []  # (number, train, text, ..)
-        self._restrictions: list[tuple[DeclaredRestriction, float, float]] = []
+        #: declared restrictions by id: (the restriction, in force from, until) [s]
+        self._restrictions: dict[int, tuple[DeclaredRestriction, float, float]] = {}
         self._static: dict[tuple[str, TravelDirection], SpeedProfile] = {}
         self._limits: dict[tuple[str, TravelDirection], tuple[list[float], list[float]]] = {}
         # Loaded trains (the line's first category) go UP, empty ones (its last) DOWN.
@@ -296,7 +298,7 @@ class FakeGround:
         here = self.line.block_section_at(train.head_m, UP)
         block = sections[min(sections.index(here) + 3, len(sections) - 1)]
         fault = DeclaredRestriction.on_block(block.id, TargetReason.SECTION_FAULT)
-        self._restrictions.append((fault, self._now, until_s))
+        self._restrictions[max(self._restrictions, default=0) + 1] = (fault, self._now, until_s)
         signal = block.entry_signal or "the line's end"
         self._send_command(
             train.train_id, f"Section fault in block {block.id}: stop at signal {signal}, wait."
@@ -471,7 +473,7 @@ class FakeGround:
                     delivery.state = TSR_TRANSITIONS[(delivery.state, TsrInput.VALIDITY_ENDED)]
 
     def _in_force(self) -> list[DeclaredRestriction]:
-        return [r for r, start, end in self._restrictions if start <= self._now < end]
+        return list(self._live_restrictions().values())
 
     def _reports(self) -> list[TrainReport]:
         reports = []
@@ -546,6 +548,43 @@ class FakeGround:
             self._version += 1
             return {"ok": self._tsr_view(tsr)}
 
+    def set_restriction(
+        self, fields: Mapping[str, Any], actor: str, now_s: float
+    ) -> dict[str, Any]:
+        with self._lock:
+            try:
+                op = parse_operation("restriction_set", fields, line=self.line, now_s=now_s)
+                assert isinstance(op, SetRestriction)
+                op.restriction.blocks(self.line)  # a span off the line: an error here
+            except OperationError as exc:
+                return {"errors": exc.errors}
+            except ConfigError as exc:
+                return {"errors": {config_error_field(exc): str(exc)}}
+            ident = op.restriction_id or max(self._restrictions, default=0) + 1
+            if ident in self._restrictions:
+                return {"errors": {"id": f"{ident} is not allowed: expected an unused id"}}
+            self._restrictions[ident] = (op.restriction, self._now, math.inf)
+            self._version += 1
+            return {"ok": view.restriction_view(ident, op.restriction, self.line)}
+
+    def clear_restriction(self, ident: int, actor: str, now_s: float) -> dict[str, Any]:
+        with self._lock:
+            if ident not in self._live_restrictions():
+                known = ", ".join(map(str, self._live_restrictions())) or "none"
+                return {"errors": {"id": f"{ident} is not allowed: expected one of {known}"}}
+            restriction, start, _ = self._restrictions[ident]
+            self._restrictions[ident] = (restriction, start, self._now)
+            self._version += 1
+            return {"ok": {"id": ident}}
+
+    def _live_restrictions(self) -> dict[int, DeclaredRestriction]:
+        """The restrictions in force now, by id."""
+        return {
+            i: r
+            for i, (r, start, end) in sorted(self._restrictions.items())
+            if start <= self._now < end
+        }
+
     def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
         with self._lock:
             try:
@@ -596,6 +635,10 @@ class FakeGround:
                 "blocks": view.blocks_view(self.line, occupancy, restricted),
                 "trains": trains,
                 "tsrs": [self._tsr_view(t) for t in self._tsrs.tsrs()],
+                "restrictions": [
+                    view.restriction_view(i, r, self.line)
+                    for i, r in self._live_restrictions().items()
+                ],
                 "dispatch": [
                     {
                         "command": number,

@@ -17,7 +17,8 @@ dispatch application on a running server (:class:`~railpilot.net.dispatch_host.D
   each train's plan in force where the ground holds its timetable (a line run's ground:
   the timetable, or the last re-timing).
 
-The forms' requests (a TSR, its cancel, a dispatch command) go through
+The forms' requests (a TSR and its cancel, a restriction and its clear, a dispatch command)
+go through
 ``DispatchHost.execute_now``: the same operation schema and
 validation as the admin port and the CLI (ground/operations.py).
 
@@ -130,6 +131,23 @@ class ServerSource:
             return {"errors": exc.errors}
         return {"ok": self._tsr_view(tsr)}
 
+    def set_restriction(
+        self, fields: Mapping[str, Any], actor: str, now_s: float
+    ) -> dict[str, Any]:
+        try:
+            result = self.host.execute_now("restriction_set", fields, actor)
+        except OperationError as exc:
+            return {"errors": exc.errors}
+        ident = result["id"]
+        return {"ok": view.restriction_view(ident, self.dispatch.restrictions[ident], self.line)}
+
+    def clear_restriction(self, ident: int, actor: str, now_s: float) -> dict[str, Any]:
+        try:
+            self.host.execute_now("restriction_clear", {"id": ident}, actor)
+        except OperationError as exc:
+            return {"errors": exc.errors}
+        return {"ok": {"id": ident}}
+
     def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
         try:
             result = self.host.execute_now("dispatch", fields, actor)
@@ -183,6 +201,10 @@ class ServerSource:
             "blocks": view.blocks_view(self.line, occupancy, restricted),
             "trains": trains,
             "tsrs": [self._tsr_view(t, numbers) for t in self.dispatch.tsrs.tsrs()],
+            "restrictions": [
+                view.restriction_view(ident, r, self.line)
+                for ident, r in sorted(self.dispatch.restrictions.items())
+            ],
             "dispatch": [
                 {
                     "command": number,

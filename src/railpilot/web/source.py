@@ -1,7 +1,7 @@
 """What the dashboard reads and asks of the ground: the :class:`DashboardSource` protocol.
 
 The web app (app.py) is a thin adapter: it asks a source for JSON-ready snapshots, hands
-the dispatcher's TSR and dispatch command forms to it and pushes the snapshots over a
+the dispatcher's forms (TSRs, restrictions, dispatch commands) to it and pushes the snapshots over a
 WebSocket. The source owns the ground's state and its clock; the app never interprets a
 snapshot. Two sources exist:
 
@@ -27,6 +27,8 @@ times in s of the ground clock)::
      "tsrs": [{"session", "start_km", "end_km", "limit_kmh", "valid_from_s",
                "valid_until_s", "reason", "set_by", "state",
                "deliveries": [{"train", "number", "state"}]}],
+     "restrictions": [{"id", "reason", "block"|None, "start_km", "end_km",
+                       "track": "up"|"down"|"both", "blocks": [block id, ...]}],
      "dispatch": [{"command", "train", "number", "text", "state"}],
      "graph": {"from_s", "to_s", "trains": [{"id", "number", "direction",
                                              "plan": [[t_s, km], ...],
@@ -55,6 +57,11 @@ TSR_FORM_FIELDS = (
     "reason",
 )
 
+
+#: The restriction form's fields: those of the ground's ``restriction_set`` operation,
+#: the reason (``section_fault`` or ``switch_indication_lost``) and either a block section
+#: id or a km span with its track (``up``, ``down`` or ``both``).
+RESTRICTION_FORM_FIELDS = ("reason", "block", "start_km", "end_km", "track")
 
 #: The dispatch command form's fields: those of the ground's ``dispatch`` operation, the
 #: train ids (``"101, 102"``, or ``"all"``: every train that has registered) and the text.
@@ -96,6 +103,19 @@ class DashboardSource(Protocol):
 
     def cancel_tsr(self, session: int, actor: str, now_s: float) -> dict[str, Any]:
         """Cancel TSR ``session``: ``{"ok": {tsr view}}`` or ``{"errors": {"session": ...}}``."""
+        ...
+
+    def set_restriction(
+        self, fields: Mapping[str, Any], actor: str, now_s: float
+    ) -> dict[str, Any]:
+        """Declare a restriction (a section fault, a lost switch indication) from the form's
+        ``fields`` (:data:`RESTRICTION_FORM_FIELDS`; blank ones left out): the signals
+        protecting its blocks go red and trains are held before them. ``{"ok": {restriction
+        view}}`` or ``{"errors": {field: message}}``."""
+        ...
+
+    def clear_restriction(self, ident: int, actor: str, now_s: float) -> dict[str, Any]:
+        """Clear restriction ``ident``: ``{"ok": {"id": ident}}`` or ``{"errors": {"id": ...}}``."""
         ...
 
     def send_dispatch(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:

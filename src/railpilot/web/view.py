@@ -18,7 +18,7 @@ from typing import Any
 
 from railpilot.ground.occupancy import Occupancy
 from railpilot.ground.registry import TrainState
-from railpilot.ground.targets import Target
+from railpilot.ground.targets import DeclaredRestriction, Target
 from railpilot.ground.tsr_manager import LineTsr, LineTsrState
 from railpilot.line.model import RailLine, direction_name
 from railpilot.link.events import AppliedTsr
@@ -128,6 +128,30 @@ def line_view(line: RailLine, aspects: Mapping[str, str]) -> dict[str, Any]:
             }
             for s in line.signals
         ],
+    }
+
+
+def restriction_view(
+    ident: int, restriction: DeclaredRestriction, line: RailLine
+) -> dict[str, Any]:
+    """A declared restriction as the page lists it: its id, reason (the operation's name
+    for it), the block or km span it holds at red and on which track."""
+    blocks = restriction.blocks(line)
+    if restriction.block_id is not None:
+        start_m, end_m = blocks[0].start_m, blocks[0].end_m
+        track = direction(blocks[0].direction)
+    else:
+        assert restriction.start_m is not None and restriction.end_m is not None
+        start_m, end_m = restriction.start_m, restriction.end_m
+        track = "both" if restriction.direction is None else direction(restriction.direction)
+    return {
+        "id": ident,
+        "reason": restriction.reason.name.lower(),
+        "block": restriction.block_id,
+        "start_km": km(start_m),
+        "end_km": km(end_m),
+        "track": track,
+        "blocks": [b.id for b in blocks],
     }
 
 

@@ -8,6 +8,7 @@ const SVGNS = "http://www.w3.org/2000/svg";
 const TOKEN_KEY = "railpilot.dispatcherToken";
 const FIELDS = ["start_km", "end_km", "limit_kmh", "valid_from_min", "valid_until_min", "reason"];
 const DISPATCH_FIELDS = ["trains", "text"];
+const RESTRICTION_FIELDS = ["reason", "block", "start_km", "end_km", "track"];
 const STALE_AFTER_S = 3; // no push for this long: say so
 const MAX_ALARMS_SHOWN = 100; // alarms listed one by one; the rest are counted
 const LABEL_CHAR_PX = 6.6; // width of a character of a train's label on the line diagram
@@ -15,6 +16,7 @@ const LABEL_CHAR_PX = 6.6; // width of a character of a train's label on the lin
 let latest = null; // the last snapshot
 let lastMessageAt = 0; // performance.now() of the last snapshot [ms]
 let armedCancel = null; // the TSR session whose "Cancel" asks for confirmation
+let armedClear = null; // the restriction whose "Clear" asks for confirmation
 let staticKey = null; // which line the diagram's static layer was drawn for
 
 // What the page drew, for load tests and tools (railpilot link loadtest --dashboard reads
@@ -168,6 +170,7 @@ async function post(url, body) {
 // A form's fields and where its inputs and their errors are (the token's error is shared).
 const TSR_FORM = { fields: FIELDS, input: "f-", error: "err-" };
 const DISPATCH_FORM = { fields: DISPATCH_FIELDS, input: "fd-", error: "errd-" };
+const RESTRICTION_FORM = { fields: RESTRICTION_FIELDS, input: "fr-", error: "errr-" };
 
 function showErrors(errors, form = TSR_FORM) {
   const errorOf = (name) => $(name === "token" ? "err-token" : `${form.error}${name}`);
@@ -237,6 +240,61 @@ $("tsr-form").addEventListener("submit", async (event) => {
     $("tsr-submit").disabled = false;
   }
 });
+
+$("restriction-form").addEventListener("submit", async (event) => {
+  event.preventDefault();
+  $("restriction-result").textContent = "";
+  if (!token()) {
+    showErrors({ token: "enter the dispatcher token first" }, RESTRICTION_FORM);
+    return;
+  }
+  // a block, or a km span on a track: the fields left blank are not sent
+  const fields = { reason: $("fr-reason").value };
+  for (const name of ["block", "start_km", "end_km"]) {
+    const value = $(`fr-${name}`).value.trim();
+    if (value) fields[name] = value;
+  }
+  if (!fields.block) fields.track = $("fr-track").value;
+  $("restriction-submit").disabled = true;
+  try {
+    const { status, data } = await post("/api/restriction", fields);
+    if (status === 200 && data.ok) {
+      showErrors({}, RESTRICTION_FORM);
+      const r = data.ok;
+      $("restriction-result").textContent = `Restriction ${r.id} declared: ` +
+        `${r.blocks.length} block(s) held at red`;
+      for (const name of ["block", "start_km", "end_km"]) $(`fr-${name}`).value = "";
+    } else {
+      showErrors(data.errors || { form: `the server answered ${status}` }, RESTRICTION_FORM);
+    }
+  } catch (error) {
+    showErrors({ form: `could not reach the server: ${error}` }, RESTRICTION_FORM);
+  } finally {
+    $("restriction-submit").disabled = false;
+  }
+});
+
+async function clearRestriction(id) {
+  if (armedClear !== id) { // first click: ask again
+    armedClear = id;
+    render();
+    return;
+  }
+  armedClear = null;
+  if (!token()) {
+    showErrors({ token: "enter the dispatcher token first" }, RESTRICTION_FORM);
+    render();
+    return;
+  }
+  const { status, data } = await post(`/api/restriction/${id}/clear`, {});
+  if (status === 200 && data.ok) {
+    showErrors({}, RESTRICTION_FORM);
+    $("restriction-result").textContent = `Restriction ${id} cleared`;
+  } else {
+    showErrors(data.errors || { form: `the server answered ${status}` }, RESTRICTION_FORM);
+  }
+  render();
+}
 
 async function cancelTsr(session) {
   if (armedCancel !== session) { // first click: ask again
@@ -351,7 +409,7 @@ function drawLine(snap) {
       if (!part) continue;
       const y = row.y + (block.direction === "up" ? Y.up : Y.down);
       layer.append(s("line", {
-        class: `block ${block.state}`, x1: xAt(row, part[0]), x2: xAt(row, part[1]), y1: y, y2: y,
+        class: `block ${block.state}`, "data-block": block.id, x1: xAt(row, part[0]), x2: xAt(row, part[1]), y1: y, y2: y,
       }, s("title", {}, `block ${block.id}: ${block.state}${block.reason ? ` (${block.reason})` : ""}`)));
     }
   }
@@ -572,6 +630,24 @@ function drawTsrs(snap) {
   $("tsrs").tBodies[0].replaceChildren(...rows);
 }
 
+function drawRestrictions(snap) {
+  const rows = snap.restrictions.map((r) => {
+    const armed = armedClear === r.id;
+    return h("tr", { "data-restriction": r.id },
+      h("td", { class: "num" }, r.id),
+      h("td", {}, r.reason.replaceAll("_", " ")),
+      h("td", { class: "num" }, r.block ? `block ${r.block}` : `km ${fmt(r.start_km, 3)}–${fmt(r.end_km, 3)}`),
+      h("td", {}, r.track),
+      h("td", {}, r.blocks.join(", ")),
+      h("td", {}, h("button", {
+        type: "button", class: armed ? "armed" : "", "data-clear": r.id,
+        onclick: () => clearRestriction(r.id),
+      }, armed ? "Confirm clear" : "Clear…")));
+  });
+  if (!rows.length) rows.push(h("tr", {}, h("td", { colspan: 6, class: "muted" }, "none declared")));
+  $("restrictions").tBodies[0].replaceChildren(...rows);
+}
+
 function drawTrains(snap) {
   const rows = snap.trains.map((t) => {
     const rejections = Object.entries(t.link.rejections).map(([check, n]) => `${check} ${n}`).join(" · ");
@@ -650,6 +726,7 @@ function render() {
   drawLine(latest);
   drawGraph(latest);
   drawTsrs(latest);
+  drawRestrictions(latest);
   drawTrains(latest);
   drawDispatch(latest);
 }
