@@ -279,3 +279,32 @@ def test_a_sweep_on_a_dask_cluster_gives_the_same_summary(tiny_runs, capsys):
         args = ["line", "simulate", str(path), "--runs", "3", "--seed", "5", "--json"]
         assert main([*args, "--scheduler", cluster.scheduler_address]) == 0
     _check_sweep(json.loads(capsys.readouterr().out), runs)
+
+
+@pytest.mark.parametrize(
+    ("args", "field"),
+    [
+        (["1"], "event"),  # the tiny file has no events
+        (["0", "--seed", "-1"], "--seed"),
+    ],
+)
+def test_knock_on_refuses_bad_arguments_before_running(tmp_path, capsys, args, field):
+    path = tmp_path / "tiny.toml"
+    path.write_text(TINY)
+    assert main(["line", "knock-on", str(path), *args]) == 2
+    err = capsys.readouterr().err
+    assert f"{field} = " in err and "Traceback" not in err
+
+
+def test_knock_on_prints_each_trains_difference(tmp_path, capsys):
+    path = tmp_path / "tiny.toml"
+    path.write_text(
+        TINY + '[[events]]\nat_min = 5.0\nop = "train_failure"\ntrain = 101\nstand_min = 2.0\n'
+    )
+    assert main(["line", "knock-on", str(path), "1", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out["own_train"] == 101 and list(out["trains"]) == ["101"]
+    row = out["trains"]["101"]["arrival_delay_s"]
+    assert row["knock_on"] == pytest.approx(row["with"] - row["without"], abs=0.15)
+    assert row["knock_on"] >= 0.9 * 120.0  # at least (about) its 2 minutes' stand
+    assert out["knock_on_others_s"] == 0.0  # no other train

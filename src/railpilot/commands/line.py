@@ -1,6 +1,7 @@
 """``railpilot line simulate SCENARIO``: a whole line, trains, ground and radio together,
-in simulated time, with paper 001's KPIs; ``railpilot line run SCENARIO --speedup 60``: the
-same live, the ground a server and each train a process over TCP (docs/line-run.md)."""
+in simulated time, with paper 001's KPIs; ``railpilot line knock-on SCENARIO EVENT``: what
+one event cost each train; ``railpilot line run SCENARIO --speedup 60``: the same live, the
+ground a server and each train a process over TCP (docs/line-run.md)."""
 
 from __future__ import annotations
 
@@ -70,6 +71,20 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run)
     p = sub.add_parser(
+        "knock-on",
+        help="what one event of a scenario cost each train: the day with it and without it",
+        description="Co-simulate SCENARIO twice with the same seed, as written and without its "
+        "event EVENT (1-based, in the file's order), and print each train's arrival delay "
+        "and net energy in both, and their difference: the event's own train's primary "
+        "delay and the knock-on (secondary) delay of the trains it held up "
+        "(docs/line-run.md, Knock-on delay).",
+    )
+    p.add_argument("scenario", type=Path, help="line-run TOML file (examples/line_short_day.toml)")
+    p.add_argument("event", type=int, help="the event's number, 1 for the file's first")
+    p.add_argument("--seed", type=int, help="seed (default: the file's)")
+    p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.set_defaults(func=run_knock_on)
+    p = sub.add_parser(
         "run",
         help="run a line scenario live: the ground a server, each train a process over TCP",
         description="Run SCENARIO live: the ground (link server, store, dispatch, admin port "
@@ -101,6 +116,45 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
     p.set_defaults(func=run_live_command)
+
+
+def run_knock_on(args: argparse.Namespace) -> int:
+    """``railpilot line knock-on``: one event's cost to each train (cosim/knock_on.py)."""
+    from railpilot.cosim.knock_on import knock_on
+    from railpilot.cosim.scenario import load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.seed is not None:
+        _check_seed(args.seed)
+    result = knock_on(scenario, args.event, seed=args.seed)
+    out = result.summary()
+    if args.json:
+        print_json(out)
+        return 0
+    event = out["event"]
+    print(
+        f"{out['scenario']} (seed {out['seed']}): event {event['index']}, {event['label']} "
+        f"at {event['at_s'] / 60.0:g} min; with it and without it"
+    )
+    header = ("delay with [s]", "without", "knock-on", "energy [kWh]")
+    print(f"  {'train':8s} {header[0]:>15s} {header[1]:>9s} {header[2]:>9s} {header[3]:>13s}")
+    for row in out["trains"].values():
+        delay, energy = row["arrival_delay_s"], row["energy_kwh"]
+        name = row["number"] + (" *" if row["own"] else "")
+        print(
+            f"  {name:8s} {_shown(delay['with']):>15s} {_shown(delay['without']):>9s}"
+            f" {_shown(delay['knock_on']):>9s} {energy['knock_on']:>+13.1f}"
+        )
+    print(
+        f"  knock-on of the other trains: {out['knock_on_others_s']} s in all, "
+        f"{out['knock_on_others_late_s']} s of it later"
+        + ("; * the event's own train" if out["own_train"] is not None else "")
+    )
+    return 0
+
+
+def _shown(value: float | None) -> str:
+    return "-" if value is None else f"{value:+.1f}"
 
 
 def run_live_command(args: argparse.Namespace) -> int:

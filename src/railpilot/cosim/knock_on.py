@@ -1,0 +1,110 @@
+"""What one event of a line run cost each train: the day with it against the day without.
+
+A train that fails and stands ten minutes delays itself (its primary delay) and the trains
+held behind it, and those behind them (the knock-on, or secondary, delay); a TSR slows every
+train that meets it. The co-simulation is deterministic, so the cost of event ``k`` is
+measured directly: the scenario is run twice with the same seed, once as written and once
+without that event, and each train's arrival delays and energy are compared
+(``railpilot line knock-on SCENARIO K``).
+
+What the difference holds besides the event: the radio draws its latencies and losses from
+one stream per train (cosim/channel.py). A train the event does not reach sends the same
+packets at the same times and draws the same, so its difference is exactly 0 (K101 and
+E201 on the short day). A train it does reach sends other packets from then on and draws
+other luck with them: with frame loss, its difference holds that too (a lost packet's
+timeout, a replan a second later: seconds, against the minutes of a failure).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+from railpilot.errors import ConfigError
+
+from .line_run import LineResult, run_line
+from .scenario import LineScenario, ScenarioEvent, TrainFailure
+
+
+@dataclass(frozen=True)
+class KnockOn:
+    """The day with event ``index`` (1-based, in the file's order) and without it."""
+
+    scenario: LineScenario
+    index: int
+    with_event: LineResult
+    without_event: LineResult
+
+    @property
+    def event(self) -> ScenarioEvent:
+        return self.scenario.events[self.index - 1]
+
+    @property
+    def own_train(self) -> int | None:
+        """The train the event happens to (a failure's), if it is one train's."""
+        action = self.event.action
+        return action.train_id if isinstance(action, TrainFailure) else None
+
+    def summary(self) -> dict[str, Any]:
+        """One JSON-ready object: the event, and per train its arrival delay at its last
+        station with and without the event [s], the difference (+: the event made it
+        later), the same at every station it reached in both, and its net energy's
+        difference [kWh]; then the sums over the trains other than the event's own."""
+        with_kpis = self.with_event.kpis()["trains"]
+        without_kpis = self.without_event.kpis()["trains"]
+        trains: dict[str, Any] = {}
+        secondary = secondary_late = 0.0
+        for key in sorted(with_kpis, key=int):
+            a, b = with_kpis[key], without_kpis[key]
+            delay = _difference(a["arrival_delay_s"], b["arrival_delay_s"])
+            stations = [
+                _difference(x, y)
+                for x, y in zip(a["arrival_delays_s"], b["arrival_delays_s"], strict=False)
+            ]
+            own = int(key) == self.own_train
+            trains[key] = {
+                "number": a["number"],
+                "own": own,
+                "arrival_delay_s": {
+                    "with": a["arrival_delay_s"],
+                    "without": b["arrival_delay_s"],
+                    "knock_on": delay,
+                },
+                "knock_on_by_station_s": stations,
+                "energy_kwh": {
+                    "with": a["energy_kwh"],
+                    "without": b["energy_kwh"],
+                    "knock_on": round(a["energy_kwh"] - b["energy_kwh"], 1),
+                },
+            }
+            if not own and delay is not None:
+                secondary += delay
+                secondary_late += max(delay, 0.0)
+        return {
+            "scenario": self.scenario.name,
+            "seed": self.with_event.seed,
+            "event": {"index": self.index, "at_s": self.event.at_s, "label": self.event.label},
+            "own_train": self.own_train,
+            "trains": trains,
+            "knock_on_others_s": round(secondary, 1),
+            "knock_on_others_late_s": round(secondary_late, 1),
+        }
+
+
+def knock_on(scenario: LineScenario, index: int, *, seed: int | None = None) -> KnockOn:
+    """Run ``scenario`` with and without its event ``index`` (1-based, the file's order),
+    both with the same seed (the file's unless ``seed``), advised."""
+    count = len(scenario.events)
+    if type(index) is not int or not 1 <= index <= count:
+        allowed = f"an event number 1..{count}" if count else "a scenario with events (none)"
+        raise ConfigError("event", index, allowed)
+    rest = scenario.events[: index - 1] + scenario.events[index:]
+    with_event = run_line(scenario, seed=seed)
+    without_event = run_line(scenario.with_(events=rest), seed=seed)
+    return KnockOn(scenario, index, with_event, without_event)
+
+
+def _difference(with_s: float | None, without_s: float | None) -> float | None:
+    if with_s is None or without_s is None:
+        return None  # not reached in one of the two days
+    return round(with_s - without_s, 1)
