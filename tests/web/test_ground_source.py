@@ -7,9 +7,11 @@ Everything runs in one event loop, bounded by ``asyncio.timeout``; waits poll a 
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import json
-from collections.abc import Callable, Coroutine
+from collections.abc import AsyncIterator, Callable, Coroutine
 from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
 from typing import Any
 
 import pytest
@@ -160,34 +162,57 @@ def test_server_source_sets_and_cancels_a_tsr_on_real_trains() -> None:
     _run(_scenario())
 
 
+@dataclass
+class _OneTrain:
+    """A live ground (its dispatch host and dashboard source) and one onboard client."""
+
+    host: DispatchHost
+    source: ServerSource
+    changes: _Changes
+    client: OnboardClient | None = None
+
+
+@contextlib.asynccontextmanager
+async def _ground_then_one_train(
+    train_id: int, start_m: float, before_the_train: Callable[[_OneTrain], None]
+) -> AsyncIterator[_OneTrain]:
+    """A ground on loopback; ``before_the_train`` runs once it is up, then one train
+    (UP from ``start_m`` [m]) connects. Everything is stopped on the way out."""
+    keys = KeyStore()
+    keys.add_key(train_id, 1, bytes(range(32)))
+    server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
+    host = DispatchHost(server, load_line("heavy-haul"))
+    ground = _OneTrain(host, ServerSource(host), _Changes(server))
+    _, port = await server.start()
+    host.start()
+    stop = asyncio.Event()
+    task = None
+    try:
+        before_the_train(ground)
+        config = onboard_config(train_id, length_m=LENGTH_M, loco_number="HXD1-02", driver_id=7)
+        trajectory = Trajectory(start_m=start_m, direction=TravelDirection.UP)
+        ground.client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
+        task = asyncio.create_task(ground.client.run(stop))
+        yield ground
+    finally:
+        stop.set()
+        async with asyncio.timeout(10.0):
+            if task is not None:
+                await task
+            await server.stop(timeout_s=2.0)
+
+
 def test_a_train_reaching_a_tsr_later_gets_it() -> None:
+    def tsr_before_any_train(ground: _OneTrain) -> None:
+        form = {"start_km": 100, "end_km": 101, "limit_kmh": 40, "valid_until_min": 30}
+        now = ground.source.now_s()
+        answer = ground.source.set_tsr({**form, "reason": "before any train"}, "d", now)
+        assert answer["ok"]["deliveries"] == []
+
     async def scenario() -> None:
-        keys = KeyStore()
-        keys.add_key(3001, 1, bytes(range(32)))
-        server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
-        changes = _Changes(server)
-        host = DispatchHost(server, load_line("heavy-haul"))
-        source = ServerSource(host)
-        _, port = await server.start()
-        host.start()
-        stop = asyncio.Event()
-        task = None
-        try:
-            now = source.now_s()
-            form = {"start_km": 100, "end_km": 101, "limit_kmh": 40, "valid_until_min": 30}
-            answer = source.set_tsr({**form, "reason": "before any train"}, "d", now)
-            assert answer["ok"]["deliveries"] == []
-            config = onboard_config(3001, length_m=LENGTH_M, loco_number="HXD1-02", driver_id=7)
-            trajectory = Trajectory(start_m=90_000.0, direction=TravelDirection.UP)
-            client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
-            task = asyncio.create_task(client.run(stop))
-            await changes.until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
-        finally:
-            stop.set()
-            async with asyncio.timeout(10.0):
-                if task is not None:
-                    await task
-                await server.stop(timeout_s=2.0)
+        async with _ground_then_one_train(3001, 90_000.0, tsr_before_any_train) as ground:
+            source = ground.source
+            await ground.changes.until(lambda: source.delivery_state(1, 3001) is TsrState.ACTIVE)
 
     _run(scenario())
 
@@ -197,33 +222,27 @@ def _never_retimed(*_: object) -> SectionCurve:
 
 
 def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetable_for() -> None:
-    async def scenario() -> None:
-        keys = KeyStore()
-        keys.add_key(2001, 1, bytes(range(32)))
-        server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=FAST), keys)
-        changes = _Changes(server)
-        line = load_line("heavy-haul")
-        host = DispatchHost(server, line)
-        source = ServerSource(host)
-        now = source.now_s()
-        # stations 10 -> 11 -> 12: left 10 min ago, due at 11 in 30 min (beyond the graph's
-        # 20 min ahead), and (a minute's stand) at 12 half an hour after that
-        stops = [line.station(s).stop_m(UP) for s in (10, 11, 12)]
-        departures = [now - 600.0, now + 1860.0]
-        arrivals = [now + 1800.0, now + 3660.0]
+    line = load_line("heavy-haul")
+    # stations 10 -> 11 -> 12: left 10 min ago, due at 11 in 30 min (beyond the graph's
+    # 20 min ahead), and (a minute's stand) at 12 half an hour after that
+    stops = [line.station(s).stop_m(UP) for s in (10, 11, 12)]
+    departures: list[float] = []
+    arrivals: list[float] = []
+
+    def timetable(ground: _OneTrain) -> None:
+        now = ground.source.now_s()
+        departures[:] = [now - 600.0, now + 1860.0]
+        arrivals[:] = [now + 1800.0, now + 3660.0]
         train = timetabled(2001, (10, 11, 12), stops, departures, arrivals, 60.0)
         # never off plan (a late report below must not re-time: there are no curves here)
         settings = RetimerSettings(off_plan_s=86_400.0)
-        host.dispatch.retimer = OnlineRetimer({2001: train}, _never_retimed, settings)
-        _, port = await server.start()
-        host.start()
-        stop = asyncio.Event()
-        task = None
-        try:
-            config = onboard_config(2001, length_m=LENGTH_M, loco_number="HXD1-03", driver_id=7)
-            trajectory = Trajectory(start_m=stops[0] + 5_000.0, direction=TravelDirection.UP)
-            client = OnboardClient(config, keys, "127.0.0.1", port, trajectory=trajectory)
-            task = asyncio.create_task(client.run(stop))
+        ground.host.dispatch.retimer = OnlineRetimer({2001: train}, _never_retimed, settings)
+
+    async def scenario() -> None:
+        async with _ground_then_one_train(2001, stops[0] + 5_000.0, timetable) as ground:
+            source, host, changes = ground.source, ground.host, ground.changes
+            client = ground.client
+            assert client is not None
 
             def graph() -> list[dict]:
                 return list(source.snapshot(source.now_s())["graph"]["trains"])
@@ -256,11 +275,5 @@ def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetab
             late = source.snapshot(source.now_s())["trains"][0]["deviation_s"]
             assert late == round(expected - arrivals[0])
             assert 120 <= late <= 130  # the report's 2 min, and the moment it took to arrive
-        finally:
-            stop.set()
-            async with asyncio.timeout(10.0):
-                if task is not None:
-                    await task
-                await server.stop(timeout_s=2.0)
 
     _run(scenario())

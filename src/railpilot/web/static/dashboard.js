@@ -15,8 +15,6 @@ const LABEL_CHAR_PX = 6.6; // width of a character of a train's label on the lin
 
 let latest = null; // the last snapshot
 let lastMessageAt = 0; // performance.now() of the last snapshot [ms]
-let armedCancel = null; // the TSR session whose "Cancel" asks for confirmation
-let armedClear = null; // the restriction whose "Clear" asks for confirmation
 let staticKey = null; // which line the diagram's static layer was drawn for
 
 // What the page drew, for load tests and tools (railpilot link loadtest --dashboard reads
@@ -185,139 +183,88 @@ function showErrors(errors, form = TSR_FORM) {
   if (other.length) errorOf("form").textContent = other.map(([k, v]) => `${k}: ${v}`).join("; ");
 }
 
-$("dispatch-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
-  $("dispatch-result").textContent = "";
-  if (!token()) {
-    showErrors({ token: "enter the dispatcher token first" }, DISPATCH_FORM);
-    return;
-  }
-  const fields = {};
-  for (const name of DISPATCH_FIELDS) fields[name] = $(`fd-${name}`).value;
-  $("dispatch-submit").disabled = true;
-  try {
-    const { status, data } = await post("/api/dispatch", fields);
-    if (status === 200 && data.ok) {
-      showErrors({}, DISPATCH_FORM);
-      $("dispatch-result").textContent = `Command ${data.ok.command} sent to ` +
-        `${data.ok.trains.length} train(s)`;
-      $("fd-text").value = "";
-    } else {
-      showErrors(data.errors || { form: `the server answered ${status}` }, DISPATCH_FORM);
+// A form: the token first, then its fields posted, the answer shown next to them. `form` is
+// its spec (above); its elements are `${name}-form`, `${name}-submit` and `${name}-result`.
+function sendForm(name, form, url, fields, done, clear) {
+  $(`${name}-form`).addEventListener("submit", async (event) => {
+    event.preventDefault();
+    $(`${name}-result`).textContent = "";
+    if (!token()) {
+      showErrors({ token: "enter the dispatcher token first" }, form);
+      return;
     }
-  } catch (error) {
-    showErrors({ form: `could not reach the server: ${error}` }, DISPATCH_FORM);
-  } finally {
-    $("dispatch-submit").disabled = false;
-  }
-});
-
-$("tsr-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
-  $("tsr-result").textContent = "";
-  if (!token()) {
-    showErrors({ token: "enter the dispatcher token first" });
-    return;
-  }
-  const fields = {};
-  for (const name of FIELDS) fields[name] = $(`f-${name}`).value;
-  $("tsr-submit").disabled = true;
-  try {
-    const { status, data } = await post("/api/tsr", fields);
-    if (status === 200 && data.ok) {
-      showErrors({});
-      const tsr = data.ok;
-      $("tsr-result").textContent = `TSR ${tsr.session} set: km ${fmt(tsr.start_km, 3)}–` +
-        `${fmt(tsr.end_km, 3)} at ${fmt(tsr.limit_kmh, 0)} km/h, sent to ` +
-        `${tsr.deliveries.length} train(s)`;
-      for (const name of ["start_km", "end_km", "limit_kmh", "reason"]) $(`f-${name}`).value = "";
-    } else {
-      showErrors(data.errors || { form: `the server answered ${status}` });
+    $(`${name}-submit`).disabled = true;
+    try {
+      const { status, data } = await post(url, fields());
+      if (status === 200 && data.ok) {
+        showErrors({}, form);
+        $(`${name}-result`).textContent = done(data.ok);
+        for (const field of clear) $(`${form.input}${field}`).value = "";
+      } else {
+        showErrors(data.errors || { form: `the server answered ${status}` }, form);
+      }
+    } catch (error) {
+      showErrors({ form: `could not reach the server: ${error}` }, form);
+    } finally {
+      $(`${name}-submit`).disabled = false;
     }
-  } catch (error) {
-    showErrors({ form: `could not reach the server: ${error}` });
-  } finally {
-    $("tsr-submit").disabled = false;
-  }
-});
+  });
+}
 
-$("restriction-form").addEventListener("submit", async (event) => {
-  event.preventDefault();
-  $("restriction-result").textContent = "";
-  if (!token()) {
-    showErrors({ token: "enter the dispatcher token first" }, RESTRICTION_FORM);
-    return;
-  }
-  // a block, or a km span on a track: the fields left blank are not sent
-  const fields = { reason: $("fr-reason").value };
-  for (const name of ["block", "start_km", "end_km"]) {
-    const value = $(`fr-${name}`).value.trim();
-    if (value) fields[name] = value;
-  }
-  if (!fields.block) fields.track = $("fr-track").value;
-  $("restriction-submit").disabled = true;
-  try {
-    const { status, data } = await post("/api/restriction", fields);
-    if (status === 200 && data.ok) {
-      showErrors({}, RESTRICTION_FORM);
-      const r = data.ok;
-      $("restriction-result").textContent = `Restriction ${r.id} declared: ` +
-        `${r.blocks.length} block(s) held at red`;
-      for (const name of ["block", "start_km", "end_km"]) $(`fr-${name}`).value = "";
-    } else {
-      showErrors(data.errors || { form: `the server answered ${status}` }, RESTRICTION_FORM);
+sendForm("tsr", TSR_FORM, "/api/tsr",
+  () => Object.fromEntries(FIELDS.map((name) => [name, $(`f-${name}`).value])),
+  (tsr) => `TSR ${tsr.session} set: km ${fmt(tsr.start_km, 3)}–${fmt(tsr.end_km, 3)} at ` +
+    `${fmt(tsr.limit_kmh, 0)} km/h, sent to ${tsr.deliveries.length} train(s)`,
+  ["start_km", "end_km", "limit_kmh", "reason"]);
+
+sendForm("restriction", RESTRICTION_FORM, "/api/restriction",
+  () => { // a block, or a km span on a track: the fields left blank are not sent
+    const fields = { reason: $("fr-reason").value };
+    for (const name of ["block", "start_km", "end_km"]) {
+      const value = $(`fr-${name}`).value.trim();
+      if (value) fields[name] = value;
     }
-  } catch (error) {
-    showErrors({ form: `could not reach the server: ${error}` }, RESTRICTION_FORM);
-  } finally {
-    $("restriction-submit").disabled = false;
-  }
-});
+    if (!fields.block) fields.track = $("fr-track").value;
+    return fields;
+  },
+  (r) => `Restriction ${r.id} declared: ${r.blocks.length} block(s) held at red`,
+  ["block", "start_km", "end_km"]);
 
-async function clearRestriction(id) {
-  if (armedClear !== id) { // first click: ask again
-    armedClear = id;
+sendForm("dispatch", DISPATCH_FORM, "/api/dispatch",
+  () => Object.fromEntries(DISPATCH_FIELDS.map((name) => [name, $(`fd-${name}`).value])),
+  (c) => `Command ${c.command} sent to ${c.trains.length} train(s)`,
+  ["text"]);
+
+// An action on one row that takes two clicks (a TSR's cancel, a restriction's clear): the
+// first arms its button, the second posts. `armed[kind]` is the row whose button is armed.
+const armed = { tsr: null, restriction: null };
+
+async function twoClicks(kind, id, url, form, done) {
+  if (armed[kind] !== id) { // first click: ask again
+    armed[kind] = id;
     render();
     return;
   }
-  armedClear = null;
+  armed[kind] = null;
   if (!token()) {
-    showErrors({ token: "enter the dispatcher token first" }, RESTRICTION_FORM);
+    showErrors({ token: "enter the dispatcher token first" }, form);
     render();
     return;
   }
-  const { status, data } = await post(`/api/restriction/${id}/clear`, {});
+  const { status, data } = await post(url, {});
   if (status === 200 && data.ok) {
-    showErrors({}, RESTRICTION_FORM);
-    $("restriction-result").textContent = `Restriction ${id} cleared`;
+    showErrors({}, form);
+    $(`${kind}-result`).textContent = done(data.ok);
   } else {
-    showErrors(data.errors || { form: `the server answered ${status}` }, RESTRICTION_FORM);
+    showErrors(data.errors || { form: `the server answered ${status}` }, form);
   }
   render();
 }
 
-async function cancelTsr(session) {
-  if (armedCancel !== session) { // first click: ask again
-    armedCancel = session;
-    render();
-    return;
-  }
-  armedCancel = null;
-  if (!token()) {
-    showErrors({ token: "enter the dispatcher token first" });
-    render();
-    return;
-  }
-  const { status, data } = await post(`/api/tsr/${session}/cancel`, {});
-  if (status === 200 && data.ok) {
-    showErrors({});
-    $("tsr-result").textContent = `TSR ${session} cancelled: cancel sent to ` +
-      `${data.ok.deliveries.length} train(s)`;
-  } else {
-    showErrors(data.errors || { form: `the server answered ${status}` });
-  }
-  render();
-}
+const cancelTsr = (session) => twoClicks("tsr", session, `/api/tsr/${session}/cancel`, TSR_FORM,
+  (tsr) => `TSR ${session} cancelled: cancel sent to ${tsr.deliveries.length} train(s)`);
+const clearRestriction = (id) => twoClicks("restriction", id, `/api/restriction/${id}/clear`,
+  RESTRICTION_FORM, () => `Restriction ${id} cleared`);
 
 // ------------------------------------------------------------------ the line diagram
 
@@ -606,12 +553,12 @@ function chip(state, attrs, ...label) {
 
 function drawTsrs(snap) {
   const rows = snap.tsrs.slice().reverse().map((tsr) => {
-    const armed = armedCancel === tsr.session;
+    const asks = armed.tsr === tsr.session;
     const button = tsr.state === "ACTIVE"
       ? h("button", {
-        type: "button", class: armed ? "armed" : "", "data-cancel": tsr.session,
+        type: "button", class: asks ? "armed" : "", "data-cancel": tsr.session,
         onclick: () => cancelTsr(tsr.session),
-      }, armed ? "Confirm cancel" : "Cancel…")
+      }, asks ? "Confirm cancel" : "Cancel…")
       : null;
     return h("tr", { "data-session": tsr.session },
       h("td", { class: "num" }, tsr.session),
@@ -632,7 +579,7 @@ function drawTsrs(snap) {
 
 function drawRestrictions(snap) {
   const rows = snap.restrictions.map((r) => {
-    const armed = armedClear === r.id;
+    const asks = armed.restriction === r.id;
     return h("tr", { "data-restriction": r.id },
       h("td", { class: "num" }, r.id),
       h("td", {}, r.reason.replaceAll("_", " ")),
@@ -640,9 +587,9 @@ function drawRestrictions(snap) {
       h("td", {}, r.track),
       h("td", {}, r.blocks.join(", ")),
       h("td", {}, h("button", {
-        type: "button", class: armed ? "armed" : "", "data-clear": r.id,
+        type: "button", class: asks ? "armed" : "", "data-clear": r.id,
         onclick: () => clearRestriction(r.id),
-      }, armed ? "Confirm clear" : "Clear…")));
+      }, asks ? "Confirm clear" : "Clear…")));
   });
   if (!rows.length) rows.push(h("tr", {}, h("td", { colspan: 6, class: "muted" }, "none declared")));
   $("restrictions").tBodies[0].replaceChildren(...rows);
