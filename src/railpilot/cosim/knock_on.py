@@ -46,30 +46,28 @@ class KnockOn:
         return action.train_id if isinstance(action, TrainFailure) else None
 
     def summary(self) -> dict[str, Any]:
-        """One JSON-ready object: the event, and per train its arrival delay at its last
-        station with and without the event [s], the difference (+: the event made it
-        later), the same at every station it reached in both, and its net energy's
-        difference [kWh]; then the sums over the trains other than the event's own."""
+        """One JSON-ready object: the event, and per train its arrival delay at the last
+        stop it reached on both days, with and without the event [s], and the difference
+        (+: the event made it later); the difference at every stop of its timetable (None
+        where a day did not reach it); its net energy's difference [kWh] (over the
+        sections each day ran); then the sums over the trains other than the event's own."""
         with_kpis = self.with_event.kpis()["trains"]
         without_kpis = self.without_event.kpis()["trains"]
         trains: dict[str, Any] = {}
         secondary = secondary_late = 0.0
         for key in sorted(with_kpis, key=int):
             a, b = with_kpis[key], without_kpis[key]
-            delay = _difference(a["arrival_delay_s"], b["arrival_delay_s"])
-            stations = [
-                _difference(x, y)
-                for x, y in zip(a["arrival_delays_s"], b["arrival_delays_s"], strict=False)
-            ]
+            pairs = list(zip(a["arrival_delays_s"], b["arrival_delays_s"], strict=True))
+            stations = [_difference(x, y) for x, y in pairs]
+            # the last stop both days reached (a day cut short may not reach the last one)
+            both = [(x, y) for x, y in pairs if x is not None and y is not None]
+            last = both[-1] if both else (None, None)
+            delay = _difference(*last)
             own = int(key) == self.own_train
             trains[key] = {
                 "number": a["number"],
                 "own": own,
-                "arrival_delay_s": {
-                    "with": a["arrival_delay_s"],
-                    "without": b["arrival_delay_s"],
-                    "knock_on": delay,
-                },
+                "arrival_delay_s": {"with": last[0], "without": last[1], "knock_on": delay},
                 "knock_on_by_station_s": stations,
                 "energy_kwh": {
                     "with": a["energy_kwh"],

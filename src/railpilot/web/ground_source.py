@@ -18,9 +18,8 @@ dispatch application on a running server (:class:`~railpilot.net.dispatch_host.D
   the timetable, or the last re-timing).
 
 The forms' requests (a TSR and its cancel, a restriction and its clear, a dispatch command)
-go through
-``DispatchHost.execute_now``: the same operation schema and
-validation as the admin port and the CLI (ground/operations.py).
+go through ``DispatchHost.execute_now``: the same operation schema and validation as the
+admin port and the CLI (ground/operations.py).
 
 Threading: the server is not thread-safe, so the source must be used on the server's
 event loop thread only; run the dashboard in the same loop (:func:`serve_dashboard`).
