@@ -86,32 +86,19 @@ def test_an_event_number_outside_the_file_is_refused_naming_it(index: object) ->
     assert err.value.field == "event" and "1..2" in str(err.value)
 
 
-class _Day:
-    """A run's KPIs as a stand-in for a LineResult (only what the summary reads)."""
-
-    seed = 5
-
-    def __init__(self, delays: list[float | None], energy_kwh: float) -> None:
-        self._kpis = {
-            "trains": {
-                "101": {"number": "K101", "arrival_delays_s": delays, "energy_kwh": energy_kwh}
-            }
-        }
-
-    def kpis(self) -> dict:
-        return self._kpis
-
-
 def test_a_day_cut_short_is_compared_at_the_last_stop_both_days_reached() -> None:
-    from railpilot.cosim.knock_on import KnockOn
+    from railpilot.cosim.knock_on import summary
 
-    scenario = scenario_from_mapping(DAY)
-    with_event = _Day([10.0, 50.0, None], 120.0)  # the failure: the last stop not reached
-    without = _Day([10.0, 20.0, 30.0], 100.0)
-    summary = KnockOn(scenario, 1, with_event, without).summary()  # type: ignore[arg-type]
-    row = summary["trains"]["101"]
+    def day(delays: list[float | None], energy_kwh: float) -> dict:
+        row = {"number": "K101", "arrival_delays_s": delays, "energy_kwh": energy_kwh}
+        return {"seed": 5, "trains": {"101": row}}
+
+    with_event = day([10.0, 50.0, None], 120.0)  # the failure: the last stop not reached
+    without = day([10.0, 20.0, 30.0], 100.0)
+    out = summary(scenario_from_mapping(DAY), 1, with_event, without)
+    row = out["trains"]["101"]
     assert row["arrival_delay_s"] == {"with": 50.0, "without": 20.0, "knock_on": 30.0}
     assert row["knock_on_by_station_s"] == [0.0, 30.0, None]
     assert row["energy_kwh"]["knock_on"] == 20.0
-    assert summary["own_train"] is None  # event 1 is the TSR: no train of its own
-    assert summary["knock_on_others_s"] == 30.0
+    assert out["own_train"] is None  # event 1 is the TSR: no train of its own
+    assert out["knock_on_others_s"] == 30.0

@@ -91,7 +91,7 @@ def test_the_train_table_is_each_trains_kpis(section):
 
 def test_the_link_table_is_the_link_report(section):
     payload = section[0].payload
-    rows = _rows(section[0].tables[2])
+    rows = _rows(section[0].tables[-1])
     a, b = payload["advised"]["link"], payload["baseline"]["link"]
     for name, value in a["ground"].items():
         if name == "rejected":
@@ -109,6 +109,20 @@ def test_the_link_table_is_the_link_report(section):
     assert rows["radio: delivered"][2] == b["channel"]["delivered"]
     assert rows["sessions: connects"][0] == a["connects"]
     assert rows["sessions: link failures"][2] == b["link_failures"]
+
+
+def test_the_knock_on_table_is_the_day_without_the_failure(section):
+    reproduction = section[0]
+    knock = reproduction.payload["knock_on"]
+    assert knock["own_train"] == 102 and knock["event"]["label"] == "train_failure"
+    (table,) = [t for t in reproduction.tables if "failure cost each train" in t.title]
+    assert [row[0] for row in table.rows] == [
+        t["number"] + (" (failed)" if t["own"] else "") for t in knock["trains"].values()
+    ]
+    # cut at 30 min, before the failure at 45: the day without it is the same to the bit
+    assert knock["event"]["at_s"] > UNTIL_S
+    assert all(row[3] in (0.0, "-") and row[4] == 0 for row in table.rows)
+    assert knock["knock_on_others_s"] == 0.0
 
 
 def test_findings_are_computed_from_the_kpis(section):

@@ -3,14 +3,16 @@
 The day of ``examples/line_short_day.toml`` (three loaded trains and an empty one, the
 file's dispatcher operations and failures, a radio dead zone and a lossy radio) is
 co-simulated twice (:func:`railpilot.cosim.line_run.run_line`): with the advised driving
-system (the planned energy-efficient curve, the ground's target points) and with the
-baseline (the fastest run to the static limits, the cab signal only). Re-timing is not in
-the loop of either run yet (docs/line-run.md).
-Each run takes about half a minute, so the two run side by side in two processes.
+system (the planned energy-efficient curve, the ground's target points, the ground's
+re-timing) and with the baseline (the fastest run to the static limits, the cab signal
+only, the fixed plan). The two run side by side in two processes; a third run, advised
+and without the file's first train failure, then gives what that failure cost each train
+(cosim/knock_on.py).
 
 The section shows paper 001's KPIs of both runs (``LineResult.kpis()``), every train's
-conformity, delay and energy, the link's statistics, the time-distance graph of plan
-against run and the energy per train. Every number comes from the KPIs of the two runs.
+conformity, delay and energy, the failure's knock-on delays, the link's statistics, the
+time-distance graph of plan against run and the energy per train. Every number comes from
+the KPIs of the runs.
 """
 
 from __future__ import annotations
@@ -24,6 +26,7 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.cosim.knock_on import summary as knock_on_summary
 from railpilot.cosim.line_run import ON_TIME_WITHIN_MIN
 from railpilot.cosim.scenario import LineScenario
 from railpilot.reproduce.base import Reproduction, Table, find_example
@@ -61,22 +64,74 @@ class DayRun:
     events: list[dict[str, Any]]
 
 
-def drive_day(path: str, advised: bool, until_s: float | None = None) -> DayRun:
-    """One run of the scenario file at ``path`` (in a worker: it reads the file itself)."""
+def drive_day(
+    path: str, advised: bool, until_s: float | None = None, without: int | None = None
+) -> DayRun:
+    """One run of the scenario file at ``path`` (in a worker: it reads the file itself),
+    ``without`` its event of that number if given."""
+    from railpilot.cosim.knock_on import without_event
     from railpilot.cosim.line_run import run_line
     from railpilot.cosim.scenario import load_scenario
 
-    result = run_line(load_scenario(path), advised=advised, until_s=until_s)
+    scenario = load_scenario(path)
+    if without is not None:
+        scenario = without_event(scenario, without)
+    result = run_line(scenario, advised=advised, until_s=until_s)
     return DayRun(result.kpis(), result.trace, result.events)
 
 
-def drive_both(path: Path, until_s: float | None = None) -> tuple[DayRun, DayRun]:
-    """The advised run and the baseline's, side by side in two fresh processes."""
+def drive_all(
+    path: Path, until_s: float | None = None, failure: int | None = None
+) -> tuple[DayRun, DayRun, DayRun | None]:
+    """The advised run and the baseline's side by side in two fresh processes, then (if
+    ``failure`` is an event's number) the advised run without that event."""
     context = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(2, mp_context=context) as pool:
         advised = pool.submit(drive_day, str(path), True, until_s)
         baseline = pool.submit(drive_day, str(path), False, until_s)
-        return advised.result(), baseline.result()
+        without = None
+        if failure is not None:
+            without = pool.submit(drive_day, str(path), True, until_s, failure)
+        return advised.result(), baseline.result(), None if without is None else without.result()
+
+
+def knock_on_finding(out: dict[str, Any]) -> str:
+    own = next(r for r in out["trains"].values() if r["own"])
+    return (
+        f"{own['number']}'s failure cost it {own['arrival_delay_s']['knock_on']} s at its last "
+        f"stop, and the other trains {out['knock_on_others_s']} s in all (the day without it, "
+        "same seed)."
+    )
+
+
+def first_failure(scenario: LineScenario) -> int | None:
+    """The number (1-based) of the scenario's first train failure, if it has one."""
+    from railpilot.cosim.knock_on import own_train
+
+    found = (k for k, e in enumerate(scenario.events, 1) if own_train(e) is not None)
+    return next(found, None)
+
+
+def knock_on_table(out: dict[str, Any]) -> Table:
+    """What the failure cost each train: the advised day with it and without it."""
+    rows = []
+    for row in out["trains"].values():
+        delay, energy = row["arrival_delay_s"], row["energy_kwh"]
+        name = row["number"] + (" (failed)" if row["own"] else "")
+        rows.append(
+            [name, _dash(delay["with"]), _dash(delay["without"]), _dash(delay["knock_on"]),
+             energy["knock_on"]]
+        )  # fmt: skip
+    own = next(r["number"] for r in out["trains"].values() if r["own"])
+    return Table(
+        f"What {own}'s failure cost each train: the advised day with it and without it",
+        ["train", "arrival delay with [s]", "without [s]", "knock-on [s]", "net energy [kWh]"],
+        rows,
+        note="Arrival delay at the last stop the train reached on both days, against the "
+        "timetable; knock-on = with - without (the failed train's own: its primary delay). "
+        "The same seed; a train the failure does not reach differs by exactly 0 "
+        "(railpilot line knock-on, docs/line-run.md).",
+    )
 
 
 @dataclass
@@ -421,7 +476,8 @@ def run(out_dir: Path, until_s: float | None = None) -> Reproduction:
     path = scenario_path()
     scenario = load_scenario(path)  # checked here: a bad file fails before the workers start
     started = time.perf_counter()
-    advised, baseline = drive_both(path, until_s)
+    failure = first_failure(scenario)
+    advised, baseline, without = drive_all(path, until_s, failure)
     runs_s = time.perf_counter() - started
     figures = [
         save_figure(
@@ -438,8 +494,11 @@ def run(out_dir: Path, until_s: float | None = None) -> Reproduction:
     }
     # the KPIs' sim_s is the scenario's duration even for a run stopped at until_s
     simulated_s = a["sim_s"] if until_s is None else min(until_s, a["sim_s"])
+    knock = None
+    if failure is not None and without is not None:
+        knock = knock_on_summary(scenario, failure, a, without.kpis)
     note = (
-        f"{simulated_s / 3600:.2f} h simulated; the two runs side by side in two processes took "
+        f"{simulated_s / 3600:.2f} h simulated; the runs in two processes took "
         f"{runs_s:.1f} s of wall clock (the simulation itself: {a['wall_s']:.1f} s advised, "
         f"{b['wall_s']:.1f} s baseline), the whole section {wall:.1f} s."
     )
@@ -456,6 +515,7 @@ def run(out_dir: Path, until_s: float | None = None) -> Reproduction:
             ]
             for which, found in stands.items()
         },
+        "knock_on": knock,
         "runs_wall_s": round(runs_s, 2),
         "wall_s": round(wall, 2),
         "files": [str(f) for f in figures],
@@ -464,10 +524,16 @@ def run(out_dir: Path, until_s: float | None = None) -> Reproduction:
         "line-day",
         "Paper 001 on a whole line: a short day, advised driving against the baseline",
         payload,
-        [kpi_table(a, b, note), train_table(a, b), link_table(a, b)],
+        [
+            kpi_table(a, b, note),
+            train_table(a, b),
+            *([knock_on_table(knock)] if knock is not None else []),
+            link_table(a, b),
+        ],
         figures,
         [
             *findings(a, b),
+            *([knock_on_finding(knock)] if knock is not None else []),
             _stands_sentence("Advised run", stands["advised"], advised.events),
             _stands_sentence("Baseline run", stands["baseline"], baseline.events),
         ],
