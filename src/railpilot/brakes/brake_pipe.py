@@ -318,7 +318,6 @@ class BrakePipeBrake:
             "brake.max_decel_mps2",
             self.max_decel_mps2,
             positive=True,
-            allowed="a number > 0",
             error=ConfigError,
         )
         check_number(

@@ -64,7 +64,6 @@ class LagDelayBrake:
             "brake.max_decel_mps2",
             self.max_decel_mps2,
             positive=True,
-            allowed="a number > 0",
             error=ConfigError,
         )
 

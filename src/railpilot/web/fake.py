@@ -300,12 +300,9 @@ class FakeGround:
         fault = DeclaredRestriction.on_block(block.id, TargetReason.SECTION_FAULT)
         self._restrictions[max(self._restrictions, default=0) + 1] = (fault, self._now, until_s)
         signal = block.entry_signal or "the line's end"
-        self._send_command(
-            train.train_id, f"Section fault in block {block.id}: stop at signal {signal}, wait."
+        self._send_commands(
+            (train.train_id,), f"Section fault in block {block.id}: stop at signal {signal}, wait."
         )
-
-    def _send_command(self, train_id: int, text: str) -> int:
-        return self._send_commands((train_id,), text)
 
     def _send_commands(self, train_ids: tuple[int, ...], text: str) -> int:
         """One command to each of ``train_ids`` (one number, a delivery each): its number."""
@@ -349,7 +346,8 @@ class FakeGround:
                 train.link_up = False
                 self._registry.timed_out(train.train_id)
                 self._registry.link_failed(train.train_id)
-                self._send_command(train.train_id, "Link lost: stop, call the dispatcher by radio.")
+                text = "Link lost: stop, call the dispatcher by radio."
+                self._send_commands((train.train_id,), text)
             if train.link_up and self._registry.state(train.train_id, now).registered:
                 self._report(train)
                 if train.arrived_s is not None:  # at its destination: it leaves the line
