@@ -34,6 +34,7 @@ from railpilot.cosim.driver import TrainDriver
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.live import LiveOptions, run_live
 from railpilot.cosim.scenario import ScenarioEvent, load_scenario
+from railpilot.onboard.drive import train_preset
 from railpilot.web.browser import missing_browser
 
 SCENARIO = Path(__file__).parents[2] / "examples" / "line_live_short.toml"
@@ -139,6 +140,13 @@ def test_the_dashboard_was_photographed_during_the_live_run(runs) -> None:  # ty
     shot = live["live"]["screenshot"]
     assert shot["t_s"] == 30 * 60.0
     assert shot["trains_shown"] >= 1
+    # the registration does not carry a train's category: the run's ground has it from
+    # the scenario, and the page shows it for every train it lists
+    scenario = load_scenario(SCENARIO)
+    categories = {str(s.train_id): train_preset(s.kind).category for s in scenario.services}
+    shown = shot["categories_shown"]
+    assert len(shown) == shot["trains_shown"]
+    assert shown == {train: categories[train] for train in shown}
     png = Path(shot["screenshot"]).read_bytes()
     assert png[:8] == b"\x89PNG\r\n\x1a\n" and len(png) > 10_000
 

@@ -17,6 +17,7 @@ from typing import Any
 import pytest
 
 from net.helpers import FAST, GROUND_ID, onboard_config
+from railpilot.errors import ConfigError
 from railpilot.ground.retimer import OnlineRetimer, RetimerSettings, SectionCurve, timetabled
 from railpilot.line.loader import load_line
 from railpilot.line.model import UP
@@ -277,3 +278,38 @@ def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetab
             assert 120 <= late <= 130  # the report's 2 min, and the moment it took to arrive
 
     _run(scenario())
+
+
+def test_a_category_the_ground_knows_sets_the_static_limit_of_the_overspeed_alarm() -> None:
+    # km 26.6-31.7 going UP: 70 km/h for loaded trains, 75-80 for empty ones; the train
+    # runs at 72 km/h (Trajectory's 20 m/s)
+    async def scenario() -> None:
+        async with _ground_then_one_train(2001, 27_000.0, lambda _: None) as ground:
+            guessed = ground.source  # no categories: UP is taken as the line's first, loaded
+            known = ServerSource(ground.host, categories={2001: "freight_empty"})
+
+            def reported() -> bool:
+                trains = guessed.snapshot(guessed.now_s())["trains"]
+                return bool(trains) and trains[0]["speed_kmh"] is not None
+
+            await ground.changes.until(reported)
+            now = guessed.now_s()
+            (as_loaded,) = guessed.snapshot(now)["trains"]
+            (as_empty,) = known.snapshot(now)["trains"]
+            assert as_loaded["speed_kmh"] == as_empty["speed_kmh"] == pytest.approx(72.0)
+            assert as_loaded["category"] is None and as_loaded["mrsp_kmh"] == 70.0
+            assert as_loaded["alarms"] == ["overspeed"]
+            assert as_empty["category"] == "freight_empty"
+            assert as_empty["mrsp_kmh"] in (75.0, 80.0) and as_empty["alarms"] == []
+
+    _run(scenario())
+
+
+def test_a_category_that_is_not_the_line_s_is_refused_by_name() -> None:
+    host = DispatchHost(
+        GroundServer(GroundConfig(ground_id=GROUND_ID), KeyStore()), load_line("heavy-haul")
+    )
+    with pytest.raises(ConfigError) as refused:
+        ServerSource(host, categories={2001: "freight_loaded", 2002: "metro"})
+    assert refused.value.field == "categories[2002]" and refused.value.value == "metro"
+    assert "freight_loaded, freight_empty" in str(refused.value)

@@ -19,6 +19,7 @@ from railpilot.net.admin import AdminServer
 from railpilot.net.dispatch_host import DispatchHost
 from railpilot.net.server import GroundServer
 from railpilot.net.timers import LinkClock
+from railpilot.onboard.drive import train_preset
 from railpilot.web.ground_source import ServerSource, serve_dashboard
 
 from .line_run import line_keys
@@ -78,8 +79,10 @@ async def _main(args: GroundArgs) -> None:
     make_retimer = retimer_factory(scenario, retimings)
     if make_retimer is not None:
         dispatch.dispatch.retimer = make_retimer()
+    # the registration does not carry a train's category; the run's scenario does
+    categories = {s.train_id: train_preset(s.kind).category for s in scenario.services}
     http, http_task = await serve_dashboard(
-        ServerSource(dispatch), token=args.token, port=args.http_port
+        ServerSource(dispatch, categories=categories), token=args.token, port=args.http_port
     )
     await server.start()
     dispatch.start()

@@ -59,6 +59,12 @@ def dashboard_screenshot(url: str, path: Path, trains: int, wait_s: float = 30.0
                 expect(rows.nth(trains - 1)).to_be_attached(timeout=wait_s * 1000)
             page.screenshot(path=str(path), full_page=True)
             shown = rows.count()
+            # each train's category as the page wrote it (" · freight_loaded"), by train id
+            categories = {
+                str(row.get_attribute("data-train")): text.lstrip(" ·")
+                for row in rows.all()
+                for text in row.locator(".category").all_inner_texts()
+            }
         finally:
             browser.close()
-    return {"screenshot": str(path), "trains_shown": shown}
+    return {"screenshot": str(path), "trains_shown": shown, "categories_shown": categories}

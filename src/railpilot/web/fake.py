@@ -668,7 +668,9 @@ class FakeGround:
             None if held is None else held[0],
             None if held is None else held[1].state,
         )
-        return view.train_view(state, mrsp_mps=mrsp, deviation_s=deviation, target=target)
+        return view.train_view(
+            state, mrsp_mps=mrsp, deviation_s=deviation, target=target, category=train.category
+        )
 
     def _plan_m(self, train: _Train, t_s: float) -> float:
         """Where the plan has ``train``'s head at ``t_s`` [s] (km-post metres)."""

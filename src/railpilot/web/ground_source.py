@@ -78,24 +78,46 @@ class ServerSource:
         go through it, as the admin port's do.
     clock
         The ground clock [s since the epoch]; the server's own by default.
+    categories
+        Each train's speed-limit category (one of the line's) by train id, where the ground
+        knows it from elsewhere (a line run's ground: its scenario), since a registration
+        does not carry it. The page shows it, and the overspeed alarm takes that
+        category's static limit. A train not in it is taken as the line's first category
+        running UP and its last running DOWN (loaded trains up, empty ones down, as the
+        fake), and shows no category.
+
+    Raises
+    ------
+    ConfigError
+        A category that is not one of the line's.
     """
 
-    def __init__(self, host: DispatchHost, *, clock: Callable[[], float] | None = None) -> None:
+    def __init__(
+        self,
+        host: DispatchHost,
+        *,
+        clock: Callable[[], float] | None = None,
+        categories: Mapping[int, str] | None = None,
+    ) -> None:
+        line = host.line
+        categories = dict(categories or {})
+        for train_id, category in categories.items():
+            if category not in line.categories:
+                raise ConfigError(
+                    f"categories[{train_id}]", category, f"one of {', '.join(line.categories)}"
+                )
         self.host = host
         self.server = host.server
         self.dispatch = host.dispatch
-        self.line = line = host.line
+        self.line = line
         self._clock = host.server.clock if clock is None else clock
-        # The train's category is not in its registration: loaded trains (the line's
-        # first category) are taken to run UP and empty ones (its last) DOWN, as the fake.
-        self._category = {UP: line.categories[0], DOWN: line.categories[-1]}
+        self._categories = categories
+        self._guessed = {UP: line.categories[0], DOWN: line.categories[-1]}
         #: each train's history as the page shows it, and the last sample converted [s]
         self._shown: dict[int, deque[list[float]]] = {}
         self._shown_until: dict[int, float] = {}
-        self._static: dict[TravelDirection, SpeedProfile] = {
-            travel: view.static_profile(line, category, travel)
-            for travel, category in self._category.items()
-        }
+        #: static limits as MRSP inputs by (category, travel), made when first asked for
+        self._static: dict[tuple[str, TravelDirection], SpeedProfile] = {}
 
     # ------------------------------------------------------------------ DashboardSource
 
@@ -221,18 +243,29 @@ class ServerSource:
 
     def _train_view(self, state: TrainState, now_s: float) -> dict[str, Any]:
         info = state.running_info
+        category = self._categories.get(state.train_id)
         mrsp = None
         if info is not None and info.direction in (UP, DOWN):
             mrsp = view.mrsp_at(
-                self._static[info.direction],
+                self._static_limit(category or self._guessed[info.direction], info.direction),
                 self._applied(state, info.direction, now_s),
                 info.direction,
                 info.position_m,
                 now_s,
             )
         return view.train_view(
-            state, mrsp_mps=mrsp, deviation_s=self._deviation_s(state), target=self._target(state)
+            state,
+            mrsp_mps=mrsp,
+            deviation_s=self._deviation_s(state),
+            target=self._target(state),
+            category=category,
         )
+
+    def _static_limit(self, category: str, travel: TravelDirection) -> SpeedProfile:
+        key = (category, travel)
+        if key not in self._static:
+            self._static[key] = view.static_profile(self.line, category, travel)
+        return self._static[key]
 
     def _deviation_s(self, state: TrainState) -> float | None:
         """How late [s] (+) the train's last planned-curve report puts it against its

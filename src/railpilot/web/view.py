@@ -291,16 +291,19 @@ def train_view(
     mrsp_mps: float | None,
     deviation_s: float | None,
     target: dict[str, Any] | None,
+    category: str | None = None,
 ) -> dict[str, Any]:
     """One train from the registry's :class:`TrainState` (km, km/h, link health, alarms).
 
-    ``deviation_s`` [s] (+ late) is the registry's unless the source knows better.
+    ``deviation_s`` [s] (+ late) is the registry's unless the source knows better;
+    ``category`` is the train's speed-limit category where the source knows it.
     """
     info = state.running_info
     health = state.health
     return {
         "id": state.train_id,
         "number": state.train_number or (info.train_number if info else str(state.train_id)),
+        "category": category,
         "registered": state.registered,
         "length_km": None if state.length_m is None else km(state.length_m),
         "km": None if info is None else km(info.position_m),

@@ -608,6 +608,7 @@ function drawTrains(snap) {
     const classes = [t.alarms.length ? "alarm" : "", t.registered ? "" : "gone"].join(" ").trim();
     return { key: t.id, attrs: { class: classes, "data-train": t.id }, cells: [
       [{}, ["b", {}, t.number], " ", ["small", {}, `id ${t.id}`],
+        t.category ? ["small", { class: "category" }, ` · ${t.category}`] : null,
         t.registered ? null : ["small", {}, " (left the line)"]],
       [{ class: `dir-${t.direction}` }, t.direction === "up" ? "UP ▶" : t.direction === "down" ? "◀ DOWN" : "?"],
       [{ class: "num" }, fmt(t.km, 3)],
