@@ -111,7 +111,9 @@ def test_a_dispatcher_cancels_a_tsr_after_confirming(served: Served, page: Page)
     cancel.click()
     expect(page.locator("#tsr-result")).to_contain_text("TSR 1 cancelled", timeout=SHOWN_MS)
     served.ground.advance(6.0)
-    expect(page.locator('#tsrs tr[data-session="1"] td').nth(5)).to_contain_text("CANCELLED")
+    expect(page.locator('#tsrs tr[data-session="1"] td').nth(5)).to_contain_text(
+        "CANCELLED", timeout=SHOWN_MS
+    )
     expect(_delivery(page, 1, 1001)).to_have_text("CANCELLED", timeout=SHOWN_MS)
 
 
