@@ -187,9 +187,19 @@ def test_a_train_that_learns_of_a_red_exit_signal_as_it_departs_stays_put() -> N
     assert position > signal_m and speed > 0.0
 
 
+def _scheduling() -> tuple[int, int | None, set[int] | None]:
+    """This process's niceness, scheduling policy and cores (None where not known)."""
+    import os
+
+    policy = os.sched_getscheduler(0) if hasattr(os, "sched_getscheduler") else None
+    cores = os.sched_getaffinity(0) if hasattr(os, "sched_getaffinity") else None
+    return os.nice(0), policy, cores
+
+
 def test_the_dashboards_browser_runs_below_the_runs_priority() -> None:
     """The photographer's process (and the chromium it starts, which inherits it) is
-    niced, so that a browser's start does not take the cores from the train processes."""
+    niced, and on Linux idle-scheduled on one core, so that a browser's start does not
+    take the cores from the train processes."""
     import multiprocessing
     import os
     from concurrent.futures import ProcessPoolExecutor
@@ -198,8 +208,12 @@ def test_the_dashboards_browser_runs_below_the_runs_priority() -> None:
 
     if not hasattr(os, "nice"):
         pytest.skip("no os.nice here")
-    ours = os.nice(0)
+    ours, our_policy, our_cores = _scheduling()
     spawn = multiprocessing.get_context("spawn")
     with ProcessPoolExecutor(1, mp_context=spawn, initializer=_lower_priority) as pool:
-        theirs = pool.submit(os.nice, 0).result()
+        theirs, their_policy, their_cores = pool.submit(_scheduling).result()
     assert theirs == min(ours + SCREENSHOT_NICENESS, 19)
+    if our_policy is not None:
+        assert our_policy == os.SCHED_OTHER and their_policy == os.SCHED_IDLE
+    if our_cores is not None:
+        assert their_cores == {max(our_cores)}
