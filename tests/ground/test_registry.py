@@ -108,3 +108,18 @@ def test_bad_input_names_the_field(make, field) -> None:  # type: ignore[no-unty
     with pytest.raises(ConfigError) as exc:
         make()
     assert exc.value.field == field
+
+
+def test_a_plan_held_elsewhere_gives_the_deviation_of_a_train_without_a_timetable() -> None:
+    planned = {(7, 3): 1_000.0}
+    registry = TrainRegistry(planned_arrival=lambda train, station: planned.get((train, station)))
+    registry.planned_curve(7, PlannedCurve(2, 3, 100.0, 200.0), 900.0)
+    state = registry.state(7, 900.0)
+    assert (state.expected_arrival_s, state.deviation_s) == (1_100.0, 100.0)
+    assert [s.train_id for s in registry.off_plan(900.0)] == [7]
+    # a station the plan does not have: no deviation
+    registry.planned_curve(7, PlannedCurve(3, 4, 0.0, 50.0), 950.0)
+    assert registry.state(7, 950.0).deviation_s is None
+    # the train's own timetable comes first
+    registry.set_timetable(TrainTimetable.from_running_times(7, [3, 4], [100.0], 900.0))
+    assert registry.state(7, 950.0).deviation_s == 0.0

@@ -272,7 +272,10 @@ def test_the_graph_shows_the_plan_in_force_of_a_train_the_ground_holds_a_timetab
             )
             state = registry.state(2001, source.now_s())
             expected = state.expected_arrival_s
-            assert state.deviation_s is None  # the registry holds no timetable
+            # the registry holds no timetable of its own: its deviation is against the
+            # retimer's plan in force, the one the page shows
+            assert registry.timetable(2001) is None
+            assert state.deviation_s == expected - arrivals[0]
             late = source.snapshot(source.now_s())["trains"][0]["deviation_s"]
             assert late == round(expected - arrivals[0])
             assert 120 <= late <= 130  # the report's 2 min, and the moment it took to arrive

@@ -172,7 +172,9 @@ class GroundDispatch:
         if not isinstance(line, RailLine):
             raise ConfigError("line", line, "a RailLine")
         self.line = line
-        self.registry = TrainRegistry(validity_s=validity_s)
+        self.registry = TrainRegistry(
+            validity_s=validity_s, planned_arrival=self._planned_arrival_s
+        )
         # a report goes stale for the occupancy when it does for the registry
         self._occupancy_config = OccupancyConfig(validity_s=validity_s)
         top_mps = max(
@@ -433,6 +435,12 @@ class GroundDispatch:
         return Outcome(
             {"command": number, "trains": list(trains)},
             (SendDispatchCommand(tuple(trains), command, actor),),
+        )
+
+    def _planned_arrival_s(self, train_id: int, station_id: int) -> float | None:
+        """The retimer's plan in force, for the registry's deviation from plan."""
+        return (
+            None if self.retimer is None else self.retimer.planned_arrival_s(train_id, station_id)
         )
 
     def _ever_registered(self, train_id: int) -> bool:

@@ -10,14 +10,17 @@ accepted messages; the dashboard, the TSR manager and the re-timing read it.
 - **Timetable**: each train's stops with planned arrival and departure [s, ground clock]
   and its section running times; the planned-curve reports (``PlannedCurve``: time already
   run and remaining on the current station pair) give the expected arrival and the
-  deviation from plan, which is what triggers a re-timing (``off_plan``).
+  deviation from plan, which is what triggers a re-timing (``off_plan``). Where another
+  part of the ground holds the plan in force (a line run's retimer), ``planned_arrival``
+  gives it for a train the registry holds no timetable of.
 """
 
 from __future__ import annotations
 
+import contextlib
 import math
 from collections import Counter
-from collections.abc import Iterable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
 
 from railpilot.errors import ConfigError, is_finite_number
@@ -148,11 +151,23 @@ class _Train:
     timetable: TrainTimetable | None = None
 
 
+#: The plan in force held elsewhere: ``(train id, station id)`` -> the planned arrival [s,
+#: ground clock], or None where it has none.
+PlannedArrival = Callable[[int, int], float | None]
+
+
 class TrainRegistry:
-    """Every train the ground has heard of (module docstring)."""
+    """Every train the ground has heard of (module docstring).
+
+    ``planned_arrival`` is the plan in force where another part of the ground holds it
+    (:data:`PlannedArrival`); a train's own timetable (:meth:`set_timetable`) comes first.
+    """
 
     def __init__(
-        self, validity_s: float = DEFAULT_VALIDITY_S, off_plan_s: float = DEFAULT_OFF_PLAN_S
+        self,
+        validity_s: float = DEFAULT_VALIDITY_S,
+        off_plan_s: float = DEFAULT_OFF_PLAN_S,
+        planned_arrival: PlannedArrival | None = None,
     ) -> None:
         if not (is_finite_number(validity_s) and validity_s > 0):
             raise ConfigError("validity_s", validity_s, "a time > 0 [s]")
@@ -160,6 +175,7 @@ class TrainRegistry:
             raise ConfigError("off_plan_s", off_plan_s, "a time > 0 [s]")
         self.validity_s = float(validity_s)
         self.off_plan_s = float(off_plan_s)
+        self._planned_arrival = planned_arrival
         self._trains: dict[int, _Train] = {}
 
     # --- what the link reports
@@ -279,9 +295,9 @@ class TrainRegistry:
             train = self._trains[train_id] = _Train(train_id)
         return train
 
-    @staticmethod
-    def _deviation(train: _Train, now_s: float) -> tuple[float | None, float | None]:
-        """Expected arrival at the report's next station and its deviation from plan.
+    def _deviation(self, train: _Train, now_s: float) -> tuple[float | None, float | None]:
+        """Expected arrival at the report's next station and its deviation from plan (the
+        train's timetable, else the plan in force held elsewhere).
 
         The report says how long the train has still to run, as of when it was received;
         what has passed since is taken off (the train ran on meanwhile).
@@ -290,13 +306,14 @@ class TrainRegistry:
             return None, None
         remaining = max(train.curve.remaining_s - (now_s - train.curve_at_s), 0.0)
         expected = now_s + remaining
-        if train.timetable is None:
-            return expected, None
-        try:
-            planned = train.timetable.planned_arrival_s(train.curve.to_station_id)
-        except ConfigError:
-            return expected, None
-        return expected, expected - planned
+        station = train.curve.to_station_id
+        planned: float | None = None
+        if train.timetable is not None:
+            with contextlib.suppress(ConfigError):  # not one of its stops
+                planned = train.timetable.planned_arrival_s(station)
+        elif self._planned_arrival is not None:
+            planned = self._planned_arrival(train.train_id, station)
+        return expected, None if planned is None else expected - planned
 
 
 def with_departure(timetable: TrainTimetable, departure_s: float) -> TrainTimetable:

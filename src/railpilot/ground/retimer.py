@@ -288,6 +288,14 @@ class OnlineRetimer:
         [s] (the timetable's, or the last re-timing's from where that began)."""
         return self._plan[train_id].copy()
 
+    def planned_arrival_s(self, train_id: int, station_id: int) -> float | None:
+        """The plan in force's arrival [s] of ``train_id`` at ``station_id`` (a station
+        after its first), or None where the timetable has no such train or stop."""
+        train = self.trains.get(train_id)
+        if train is None or station_id not in train.stations[1:]:
+            return None
+        return float(self._plan[train_id][train.stations.index(station_id, 1) - 1])
+
     def planned_departures(self, train_id: int) -> np.ndarray:
         """The plan in force for ``train_id``: its departure from each station but its
         last [s] (the timetable's, or the last re-timing's)."""

@@ -4,8 +4,8 @@
 dispatch application on a running server (:class:`~railpilot.net.dispatch_host.DispatchHost`):
 
 - **trains**: the core's registry (registration, last running info and its validity, link
-  health, how late the last planned-curve report puts it: against the registry's timetable
-  or the retimer's plan in force) and the server's open connections;
+  health, how late the last planned-curve report puts it against the plan in force: the
+  registry's, which asks a line run's retimer) and the server's open connections;
 - **blocks and signal aspects**: the core's block occupancy (computed every tick) and the
   dispatcher's declared restrictions;
 - **TSRs**: the core's line TSRs (set from this page, the admin port or the CLI, or
@@ -256,7 +256,7 @@ class ServerSource:
         return view.train_view(
             state,
             mrsp_mps=mrsp,
-            deviation_s=self._deviation_s(state),
+            deviation_s=state.deviation_s,
             target=self._target(state),
             category=category,
         )
@@ -266,22 +266,6 @@ class ServerSource:
         if key not in self._static:
             self._static[key] = view.static_profile(self.line, category, travel)
         return self._static[key]
-
-    def _deviation_s(self, state: TrainState) -> float | None:
-        """How late [s] (+) the train's last planned-curve report puts it against its
-        plan: the registry's timetable if it holds one, else the plan in force of the
-        ground's retimer (a line run's ground: the timetable or its last re-timing)."""
-        if state.deviation_s is not None:
-            return state.deviation_s
-        retimer = self.dispatch.retimer
-        curve, expected = state.planned_curve, state.expected_arrival_s
-        if retimer is None or curve is None or expected is None:
-            return None
-        train = retimer.trains.get(state.train_id)
-        if train is None or curve.to_station_id not in train.stations[1:]:
-            return None
-        j = train.stations.index(curve.to_station_id, 1) - 1
-        return expected - float(retimer.planned_arrivals(state.train_id)[j])
 
     def _applied(
         self, state: TrainState, travel: TravelDirection, now_s: float
