@@ -35,6 +35,16 @@ def _errors(response: Any) -> dict[str, str]:
     return errors
 
 
+def _refused_and_unchanged(
+    client: TestClient, route: str, form: dict[str, str], part: str
+) -> dict[str, str]:
+    """POST ``form`` to ``route``: its errors (a 422), the snapshot's ``part`` unchanged."""
+    before = client.get("/api/snapshot").json()[part]
+    errors = _errors(client.post(route, json=form, headers=AUTH))
+    assert client.get("/api/snapshot").json()[part] == before
+    return errors
+
+
 # --- the page
 
 
@@ -298,10 +308,8 @@ def test_a_dispatch_command_to_all_goes_to_every_train(client: TestClient) -> No
 def test_a_bad_dispatch_command_is_422_naming_the_field_and_sends_nothing(
     client: TestClient, form: dict[str, str], field: str, says: str
 ) -> None:
-    before = client.get("/api/snapshot").json()["dispatch"]
-    errors = _errors(client.post("/api/dispatch", json=form, headers=AUTH))
+    errors = _refused_and_unchanged(client, "/api/dispatch", form, "dispatch")
     assert field in errors and says in errors[field], errors
-    assert client.get("/api/snapshot").json()["dispatch"] == before
 
 
 # --- declared restrictions
@@ -359,10 +367,8 @@ def test_a_restriction_on_a_km_span_holds_its_blocks_at_red_until_cleared(
 def test_a_bad_restriction_is_422_naming_the_field_and_changes_nothing(
     client: TestClient, form: dict[str, str], field: str, says: str
 ) -> None:
-    before = client.get("/api/snapshot").json()["restrictions"]
-    errors = _errors(client.post("/api/restriction", json=form, headers=AUTH))
+    errors = _refused_and_unchanged(client, "/api/restriction", form, "restrictions")
     assert field in errors and says in errors[field], errors
-    assert client.get("/api/snapshot").json()["restrictions"] == before
 
 
 def test_clearing_an_unknown_restriction_is_422(client: TestClient) -> None:
