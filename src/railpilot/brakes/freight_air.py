@@ -1,0 +1,829 @@
+"""Freight air brake along the train: brake pipe, direct-release distributors, recharge,
+emergency and distributed power.
+
+A train of ``n`` vehicles at known distances from the head. Each vehicle is one cell of
+the brake pipe; each braked vehicle has a distributor (control valve), an auxiliary
+reservoir (AR), a brake cylinder (BC) and optionally an emergency reservoir (ER). One or
+more driver's brake valves (the lead locomotive's, and each distributed-power remote's)
+hold the pipe at their vehicle at the equalizing-reservoir pressure the caller commands,
+or vent it in emergency. Model, numbers, sources and validation: docs/freight-air-brake.md.
+
+Pipe (all pressures gauge [kPa]; air quantities in "pipe metres x kPa", the pipe's
+cross-section cancelling out)::
+
+    l_i dp_i/dt = sum_links k (p_j - p_i)              flow along the pipe, k = D / dx
+                + G (p_er - p_i)                       a driver's brake valve at cell i
+                - a (dA_i/dt) - e (dE_i/dt)            reservoirs charging from the pipe
+                - quick-service and emergency venting  (local, at each distributor)
+
+``D`` and ``G`` are the pipe diffusivity and the valve's venting speed of
+brakes/brake_pipe.py (calibrated there against the ETCS conversion model). A change the
+valve makes travels as a front at the propagation speed (service, emergency or release):
+a link of the pipe carries flow only between two cells the same front has reached (the
+cells' *phase*: released, applied, emergency), so nothing reaches a vehicle before
+``distance / speed``, and behind the front the reduction follows with the pipe's flow.
+With several valves each vehicle is reached first by the nearest one.
+
+Distributor, direct release (Chinese 120, AAR ABD)::
+
+    start      A - p > s_app, or an application front arrives at a charged distributor
+               (quick service: the local pipe is vented to A0 - r_min)
+    apply      A -> max(min(p, A0 - r_min), A_eq) with lag T_a;  C += rho (-dA)
+    release    p > A + s_rel: C -> 0 with lag T_r; then A charges from the pipe
+    emergency  an emergency front: local pipe vented to 0; AR (+ ER) -> BC in two stages
+
+with ``rho = V_AR / V_BC`` (isothermal mass balance, gauge pressures:
+``V_AR dA + V_BC dC = 0``) and ``A_eq = A - (A - C) / (1 + rho)`` the equalization.
+Graduated release (UIC type): the BC follows ``rho (p_ref - p)`` both ways.
+
+The kernel :func:`freight_air_step` advances the state by ``dt`` in equal substeps no
+longer than the explicit pipe flow's stability limit (a few ms); the local exchanges
+(valve, reservoirs, venting, cylinders) are advanced exactly over each substep.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields, replace
+
+import numpy as np
+
+from railpilot.brakes.brake_pipe import (
+    APPLICATION_WAVE_MPS,
+    NOMINAL_TIMES_S,
+    PIPE_DIFFUSIVITY_M2PS,
+    RELEASE_WAVE_MPS,
+    VALVE_FLOW_MPS,
+    application_lag_s,
+    release_lag_s,
+)
+from railpilot.checks import check_number
+from railpilot.errors import ConfigError
+from railpilot.jit import njit
+
+# --- phases of a pipe cell (the type of the newest front that reached it) and modes of a
+# distributor ------------------------------------------------------------------------------
+PH_RELEASE, PH_APPLY, PH_EMERGENCY = 0, 1, 2
+MODE_RELEASED, MODE_APPLIED, MODE_EMERGENCY = 0, 1, 2
+
+# --- params layout: a header, then per-vehicle blocks of n, then the valves ----------------
+(
+    P_N,  # vehicles
+    P_NV,  # driver's brake valves
+    P_H_MAX,  # longest substep [s]
+    P_REF,  # charged pipe pressure = graduated-release reference [kPa]
+    P_RHO,  # V_AR / V_BC
+    P_EPS,  # V_ER / V_BC
+    P_AR_M,  # AR volume in pipe metres [m]
+    P_G,  # valve venting speed [m/s]
+    P_C_REL,  # release front speed [m/s]
+    P_C_APP,  # service front speed [m/s]
+    P_C_EM,  # emergency front speed [m/s]
+    P_S_APP,  # application sensitivity [kPa]
+    P_S_REL,  # release sensitivity [kPa]
+    P_R_MIN,  # minimum reduction [kPa]
+    P_TAU_APP,  # AR -> BC lag [s]
+    P_TAU_REL,  # BC exhaust lag [s]
+    P_TAU_CH,  # AR / ER charging choke lag [s]
+    P_TAU_QS,  # quick-service venting lag [s]
+    P_QS_S,  # longest quick-service venting [s]
+    P_TAU_EV,  # emergency venting lag [s]
+    P_TAU_E1,  # emergency BC first stage lag [s]
+    P_TAU_E2,  # emergency BC second stage lag [s]
+    P_E_STAGE,  # BC pressure ending the first emergency stage [kPa]
+) = range(23)
+P_HEAD = 23
+#: per-vehicle blocks after the header: position [m], pipe length [m], conductance of the
+#: link to the next vehicle [m/s] (0 for the last), 1 if direct release, 1 if braked
+PB_X, PB_ELL, PB_K, PB_DIRECT, PB_BRAKE = range(5)
+P_BLOCKS = 5
+#: fronts remembered per valve (a ring)
+N_FRONTS = 8
+
+# --- state layout: time, then per-vehicle blocks of n, then per-valve data -----------------
+ST_T = 0
+ST_HEAD = 1
+(
+    SB_BP,  # pipe [kPa]
+    SB_AR,  # auxiliary reservoir [kPa]
+    SB_BC,  # brake cylinder [kPa]
+    SB_ER,  # emergency reservoir [kPa]
+    SB_MODE,  # distributor mode
+    SB_A0,  # AR at the start of the application [kPa]
+    SB_TRIG,  # time the application started [s]
+    SB_PHASE,  # type of the newest front that reached the cell
+    SB_LAUNCH,  # launch time of that front [s]
+    SB_ARRIVE,  # time that front reached the cell [s]
+) = range(10)
+S_BLOCKS = 10
+#: per valve: its mode (the type of its newest front) and the number of fronts launched;
+#: then N_FRONTS launch times and N_FRONTS types per valve
+SV_MODE, SV_COUNT = range(2)
+
+#: bounds of the configuration
+MAX_PRESSURE_KPA = 1200.0
+MAX_SPEED_MPS = 400.0  # a pressure front does not outrun sound (~340 m/s)
+MAX_TIME_S = 600.0
+MAX_VEHICLES = 2000
+#: pipe length of a vehicle alone in the train [m] (only for a one-vehicle train)
+SINGLE_VEHICLE_M = 14.0
+#: a front never launched
+NEVER = -1.0e30
+
+
+@dataclass(frozen=True)
+class FreightAirBrake:
+    """Parameters of the freight air brake (module docstring); defaults: Chinese 120-type
+    heavy-haul practice. Sources and status of each: docs/freight-air-brake.md.
+
+    Attributes
+    ----------
+    charged_kpa
+        Charged brake-pipe pressure [kPa] (600; the Chinese settings are 500 and 600).
+    min_reduction_kpa
+        Minimum service reduction [kPa] (50): the first application's least depth.
+    ar_to_bc_ratio
+        ``rho = V_AR / V_BC`` (2.5: BC = 2.5 x reduction, full service 170 kPa -> 420-430
+        kPa at 600 kPa).
+    er_to_bc_ratio
+        ``V_ER / V_BC`` (0: the 120 valve has no emergency reservoir; 3.5 for AAR ABD,
+        which gives the published emergency BC ~20 % above full service).
+    ar_volume_l
+        AR volume [l] (40, assumed); with the pipe's bore it sets how much air the pipe
+        must carry to recharge.
+    pipe_bore_m
+        Inner diameter of the brake pipe [m] (0.032, assumed).
+    application_sensitivity_kpa, release_sensitivity_kpa
+        Pipe below the AR [kPa] that starts an application (10, assumed); pipe above the
+        AR that releases (20, assumed).
+    service_wave_mps, emergency_wave_mps, release_wave_mps
+        Front speeds [m/s]: 250, 280 (published range 250-280 m/s) and 150 (assumed), as
+        brakes/brake_pipe.py.
+    valve_flow_mps, pipe_diffusivity_m2ps
+        ``G`` [m/s] and ``D`` [m^2/s] of brakes/brake_pipe.py (calibrated to ETCS).
+    application_time_s
+        Time [s] for a BC to reach 95 % of a step of the AR target (24 s, UIC G).
+    release_time_s
+        Time [s] for a BC to vent 3.8 -> 0.4 bar (52.5 s, UIC G).
+    charge_lag_s
+        Time constant [s] of the AR (and ER) charging choke (20 s, assumed).
+    quick_service_lag_s, quick_service_max_s
+        Quick-service venting lag [s] (0.5) and its longest duration [s] (2), assumed.
+    emergency_vent_lag_s
+        Lag [s] of the emergency vent at each vehicle (0.2, assumed).
+    emergency_stage_kpa, emergency_lag1_s, emergency_lag2_s
+        The 120's two-stage emergency build-up: fast (lag 1 s, assumed) up to 135 kPa
+        (published 120-150 kPa), then slow (lag 6 s, assumed).
+    """
+
+    charged_kpa: float = 600.0
+    min_reduction_kpa: float = 50.0
+    ar_to_bc_ratio: float = 2.5
+    er_to_bc_ratio: float = 0.0
+    ar_volume_l: float = 40.0
+    pipe_bore_m: float = 0.032
+    application_sensitivity_kpa: float = 10.0
+    release_sensitivity_kpa: float = 20.0
+    service_wave_mps: float = APPLICATION_WAVE_MPS
+    emergency_wave_mps: float = 280.0
+    release_wave_mps: float = RELEASE_WAVE_MPS
+    valve_flow_mps: float = VALVE_FLOW_MPS
+    pipe_diffusivity_m2ps: float = PIPE_DIFFUSIVITY_M2PS
+    application_time_s: float = NOMINAL_TIMES_S["G"][0]
+    release_time_s: float = NOMINAL_TIMES_S["G"][1]
+    charge_lag_s: float = 20.0
+    quick_service_lag_s: float = 0.5
+    quick_service_max_s: float = 2.0
+    emergency_vent_lag_s: float = 0.2
+    emergency_stage_kpa: float = 135.0
+    emergency_lag1_s: float = 1.0
+    emergency_lag2_s: float = 6.0
+
+    def __post_init__(self) -> None:
+        positive_times = (
+            "application_time_s",
+            "release_time_s",
+            "charge_lag_s",
+            "quick_service_lag_s",
+            "quick_service_max_s",
+            "emergency_vent_lag_s",
+            "emergency_lag1_s",
+            "emergency_lag2_s",
+        )
+        for name in positive_times:
+            check_number(
+                f"air.{name}",
+                getattr(self, name),
+                positive=True,
+                maximum=MAX_TIME_S,
+                allowed=f"a number in (0, {MAX_TIME_S:g}] s",
+                error=ConfigError,
+            )
+        for name in ("service_wave_mps", "emergency_wave_mps", "release_wave_mps"):
+            check_number(
+                f"air.{name}",
+                getattr(self, name),
+                positive=True,
+                maximum=MAX_SPEED_MPS,
+                allowed=f"a speed in (0, {MAX_SPEED_MPS:g}] m/s",
+                error=ConfigError,
+            )
+        for name in ("valve_flow_mps", "pipe_diffusivity_m2ps", "ar_to_bc_ratio"):
+            check_number(f"air.{name}", getattr(self, name), positive=True, error=ConfigError)
+        check_number(
+            "air.charged_kpa",
+            self.charged_kpa,
+            positive=True,
+            maximum=MAX_PRESSURE_KPA,
+            allowed=f"a pressure in (0, {MAX_PRESSURE_KPA:g}] kPa",
+            error=ConfigError,
+        )
+        check_number("air.er_to_bc_ratio", self.er_to_bc_ratio, minimum=0.0, error=ConfigError)
+        check_number("air.ar_volume_l", self.ar_volume_l, positive=True, error=ConfigError)
+        check_number(
+            "air.pipe_bore_m",
+            self.pipe_bore_m,
+            positive=True,
+            maximum=0.1,
+            allowed="a diameter in (0, 0.1] m",
+            error=ConfigError,
+        )
+        full = self.charged_kpa / (1.0 + self.ar_to_bc_ratio)
+        check_number(
+            "air.min_reduction_kpa",
+            self.min_reduction_kpa,
+            positive=True,
+            maximum=full,
+            allowed=f"a reduction in (0, {full:.4g}] kPa (the full-service reduction)",
+            error=ConfigError,
+        )
+        for name in ("application_sensitivity_kpa", "release_sensitivity_kpa"):
+            check_number(
+                f"air.{name}",
+                getattr(self, name),
+                positive=True,
+                maximum=self.min_reduction_kpa,
+                allowed=f"a pressure in (0, {self.min_reduction_kpa:g}] kPa (the minimum "
+                "reduction)",
+                error=ConfigError,
+            )
+        check_number(
+            "air.emergency_stage_kpa",
+            self.emergency_stage_kpa,
+            minimum=0.0,
+            maximum=self.charged_kpa,
+            allowed=f"a pressure in [0, {self.charged_kpa:g}] kPa",
+            error=ConfigError,
+        )
+
+    @classmethod
+    def aar_abd(cls, **changes: float) -> FreightAirBrake:
+        """An AAR ABD/ABDX-type equipment: 90 psi (620.5 kPa) pipe, an emergency reservoir
+        (``V_ER / V_BC = 3.5``, which gives the published emergency BC 20 % above full
+        service), a 7 psi (48 kPa) minimum reduction; the rest as the defaults."""
+        base = cls(
+            charged_kpa=620.5,
+            min_reduction_kpa=48.0,
+            er_to_bc_ratio=3.5,
+            emergency_stage_kpa=0.0,
+        )
+        return replace(base, **changes)
+
+    def full_service_reduction_kpa(self) -> float:
+        """Reduction [kPa] at which a fully charged AR equalizes with its BC:
+        ``p_0 / (1 + rho)``."""
+        return self.charged_kpa / (1.0 + self.ar_to_bc_ratio)
+
+    def full_service_bc_kpa(self) -> float:
+        """BC pressure [kPa] of a full-service application from a fully charged AR:
+        ``rho p_0 / (1 + rho)`` (the reference of the brake force)."""
+        return self.ar_to_bc_ratio * self.charged_kpa / (1.0 + self.ar_to_bc_ratio)
+
+    def emergency_bc_kpa(self) -> float:
+        """BC pressure [kPa] of an emergency application from fully charged AR and ER."""
+        return float(emergency_bc_kpa(self, self.charged_kpa, self.charged_kpa))
+
+    def ar_pipe_m(self) -> float:
+        """The AR's volume as a length of brake pipe [m]."""
+        area = math.pi * self.pipe_bore_m**2 / 4.0
+        return self.ar_volume_l * 1e-3 / area
+
+
+# --- closed forms (tests, docs) ------------------------------------------------------------
+
+
+def arrival_time_s(
+    positions_m: np.ndarray,
+    valve_vehicles: np.ndarray,
+    speed_mps: float,
+    launch_s: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """When a front launched at each valve at ``launch_s`` [s] first reaches each vehicle [s]:
+    ``min_j (launch_j + |x_i - x_vj| / c)``, the nearest valve's."""
+    x = np.asarray(positions_m, dtype=float)
+    valves = np.asarray(valve_vehicles, dtype=np.int64)
+    launch = np.broadcast_to(np.asarray(launch_s, dtype=float), valves.shape)
+    times = launch[np.newaxis, :] + np.abs(x[:, np.newaxis] - x[valves][np.newaxis, :]) / speed_mps
+    return np.asarray(times.min(axis=1))
+
+
+def equalization_bc_kpa(
+    ar_kpa: np.ndarray | float, bc_kpa: np.ndarray | float = 0.0, ratio: float = 2.5
+) -> np.ndarray:
+    """BC pressure [kPa] when an AR at ``ar_kpa`` has given air to its BC (at ``bc_kpa``)
+    until the two are equal: ``C + rho (A - C) / (1 + rho)`` (mass balance)."""
+    a = np.asarray(ar_kpa, dtype=float)
+    c = np.asarray(bc_kpa, dtype=float)
+    return np.asarray(c + ratio * np.maximum(a - c, 0.0) / (1.0 + ratio))
+
+
+def service_bc_kpa(
+    brake: FreightAirBrake,
+    ar_start_kpa: np.ndarray | float,
+    bp_kpa: np.ndarray | float,
+    bc_start_kpa: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """Settled BC pressure [kPa] of a direct-release distributor whose application started
+    with its AR at ``ar_start_kpa`` and its BC at ``bc_start_kpa``, with the pipe now at
+    ``bp_kpa``.
+
+    The AR laps at the pipe, but at least the minimum reduction below its start, and not
+    below equalization; the BC receives the air it gives: ``C = C0 + rho (A0 - A)``.
+    """
+    rho = brake.ar_to_bc_ratio
+    a0 = np.asarray(ar_start_kpa, dtype=float)
+    c0 = np.asarray(bc_start_kpa, dtype=float)
+    lap = np.minimum(np.asarray(bp_kpa, dtype=float), a0 - brake.min_reduction_kpa)
+    a_eq = a0 - np.maximum(a0 - c0, 0.0) / (1.0 + rho)
+    a_end = np.minimum(np.maximum(lap, a_eq), a0)
+    return np.asarray(c0 + rho * (a0 - a_end))
+
+
+def emergency_bc_kpa(
+    brake: FreightAirBrake,
+    ar_kpa: np.ndarray | float,
+    er_kpa: np.ndarray | float,
+    bc_kpa: np.ndarray | float = 0.0,
+) -> np.ndarray:
+    """Settled BC pressure [kPa] of an emergency application: AR, ER and BC equalize,
+    ``(rho A + e E + C) / (rho + e + 1)`` with ``e = V_ER / V_BC``."""
+    rho, e = brake.ar_to_bc_ratio, brake.er_to_bc_ratio
+    a = np.asarray(ar_kpa, dtype=float)
+    er = np.asarray(er_kpa, dtype=float)
+    c = np.asarray(bc_kpa, dtype=float)
+    return np.asarray((rho * a + e * er + c) / (rho + e + 1.0))
+
+
+# --- packing ---------------------------------------------------------------------------------
+
+
+def _vehicle_arrays(
+    positions_m: np.ndarray,
+    valve_vehicles: np.ndarray,
+    direct_release: np.ndarray,
+    has_brake: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The caller's arrays, checked (ConfigError naming ``air.<argument>``)."""
+    x = np.asarray(positions_m, dtype=float)
+    if x.ndim != 1 or not 1 <= x.size <= MAX_VEHICLES:
+        raise ConfigError("air.positions_m", x.shape, f"1 to {MAX_VEHICLES} positions")
+    if not np.all(np.isfinite(x)) or np.any(np.diff(x) <= 0.0):
+        raise ConfigError("air.positions_m", x, "finite positions, strictly increasing [m]")
+    valves = np.asarray(valve_vehicles)
+    if (
+        valves.ndim != 1
+        or valves.size == 0
+        or valves.dtype.kind not in "iu"
+        or np.any(valves < 0)
+        or np.any(valves >= x.size)
+        or np.unique(valves).size != valves.size
+    ):
+        raise ConfigError(
+            "air.valve_vehicles", valve_vehicles, f"distinct integer indices in [0, {x.size})"
+        )
+    flags = []
+    for name, value in (("direct_release", direct_release), ("has_brake", has_brake)):
+        array = np.asarray(value)
+        if array.shape != x.shape or array.dtype.kind not in "biu":
+            raise ConfigError(f"air.{name}", value, f"{x.size} booleans, one per vehicle")
+        flags.append(array.astype(bool))
+    return x, valves.astype(np.int64), flags[0], flags[1]
+
+
+def pack_freight_air(
+    brake: FreightAirBrake,
+    positions_m: np.ndarray,
+    valve_vehicles: np.ndarray,
+    direct_release: np.ndarray,
+    has_brake: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray]:
+    """The kernel's ``(params, state)``: the state charged and released at the brake's pipe
+    pressure, at time 0.
+
+    ``positions_m``: each vehicle's distance from the head [m], increasing;
+    ``valve_vehicles``: int indices of the vehicles with a driver's brake valve (lead
+    first); ``direct_release`` / ``has_brake``: per vehicle.
+    """
+    x, valves, direct, braked = _vehicle_arrays(
+        positions_m, valve_vehicles, direct_release, has_brake
+    )
+    n, nv = x.size, valves.size
+    # each vehicle's share of the pipe: half-way to its neighbours, the ends a full spacing
+    if n == 1:
+        ell = np.array([SINGLE_VEHICLE_M])
+    else:
+        gaps = np.diff(x)
+        ell = np.empty(n)
+        ell[1:-1] = (gaps[:-1] + gaps[1:]) / 2.0
+        ell[0], ell[-1] = gaps[0], gaps[-1]
+    k = np.zeros(n)
+    if n > 1:
+        k[:-1] = brake.pipe_diffusivity_m2ps / np.diff(x)
+    # explicit pipe flow: a substep within 40 % of the stability limit l / sum(k)
+    k_sum = k + np.concatenate(([0.0], k[:-1]))
+    h_max = 0.01 if n == 1 else min(0.01, 0.4 * float(np.min(ell / k_sum)))
+    p = np.zeros(P_HEAD + P_BLOCKS * n + nv)
+    p[P_N], p[P_NV], p[P_H_MAX] = n, nv, h_max
+    p[P_REF] = brake.charged_kpa
+    p[P_RHO] = brake.ar_to_bc_ratio
+    p[P_EPS] = brake.er_to_bc_ratio
+    p[P_AR_M] = brake.ar_pipe_m()
+    p[P_G] = brake.valve_flow_mps
+    p[P_C_REL] = brake.release_wave_mps
+    p[P_C_APP] = brake.service_wave_mps
+    p[P_C_EM] = brake.emergency_wave_mps
+    p[P_S_APP] = brake.application_sensitivity_kpa
+    p[P_S_REL] = brake.release_sensitivity_kpa
+    p[P_R_MIN] = brake.min_reduction_kpa
+    p[P_TAU_APP] = application_lag_s(brake.application_time_s)
+    p[P_TAU_REL] = release_lag_s(brake.release_time_s)
+    p[P_TAU_CH] = brake.charge_lag_s
+    p[P_TAU_QS] = brake.quick_service_lag_s
+    p[P_QS_S] = brake.quick_service_max_s
+    p[P_TAU_EV] = brake.emergency_vent_lag_s
+    p[P_TAU_E1] = brake.emergency_lag1_s
+    p[P_TAU_E2] = brake.emergency_lag2_s
+    p[P_E_STAGE] = brake.emergency_stage_kpa
+    for block, values in (
+        (PB_X, x),
+        (PB_ELL, ell),
+        (PB_K, k),
+        (PB_DIRECT, direct.astype(float)),
+        (PB_BRAKE, braked.astype(float)),
+    ):
+        p[P_HEAD + block * n : P_HEAD + (block + 1) * n] = values
+    p[P_HEAD + P_BLOCKS * n :] = valves
+    s = np.zeros(ST_HEAD + S_BLOCKS * n + nv * (2 + 2 * N_FRONTS))
+    for block in (SB_BP, SB_AR, SB_ER):
+        s[ST_HEAD + block * n : ST_HEAD + (block + 1) * n] = brake.charged_kpa
+    for block in (SB_TRIG, SB_LAUNCH, SB_ARRIVE):
+        s[ST_HEAD + block * n : ST_HEAD + (block + 1) * n] = NEVER
+    launches = ST_HEAD + S_BLOCKS * n + 2 * nv
+    s[launches : launches + nv * N_FRONTS] = NEVER
+    return p, s
+
+
+# --- accessors (njit: usable inside another compiled function) -------------------------------
+
+
+@njit(cache=True)
+def _state_block(params: np.ndarray, state: np.ndarray, block: int) -> np.ndarray:
+    n = int(params[P_N])
+    return state[ST_HEAD + block * n : ST_HEAD + (block + 1) * n]
+
+
+@njit(cache=True)
+def bp_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Each vehicle's brake-pipe pressure [kPa] (a view of ``state``)."""
+    return _state_block(params, state, SB_BP)
+
+
+@njit(cache=True)
+def ar_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Each vehicle's auxiliary-reservoir pressure [kPa] (a view of ``state``)."""
+    return _state_block(params, state, SB_AR)
+
+
+@njit(cache=True)
+def bc_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Each vehicle's brake-cylinder pressure [kPa] (a view; 0 for an unbraked vehicle)."""
+    return _state_block(params, state, SB_BC)
+
+
+@njit(cache=True)
+def er_kpa_of(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Each vehicle's emergency-reservoir pressure [kPa] (a view of ``state``)."""
+    return _state_block(params, state, SB_ER)
+
+
+@njit(cache=True)
+def front_arrival_s(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """When the newest front reached each vehicle [s] (a view; -1e30 if none has)."""
+    return _state_block(params, state, SB_ARRIVE)
+
+
+@njit(cache=True)
+def application_start_s(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """When each distributor's latest application started [s] (a view; -1e30 if never)."""
+    return _state_block(params, state, SB_TRIG)
+
+
+def time_s(state: np.ndarray) -> float:
+    """The state's time [s]."""
+    return float(state[ST_T])
+
+
+# --- the kernel -----------------------------------------------------------------------------
+
+
+@njit(cache=True)
+def _relax(value: float, target: float, alpha: float) -> float:
+    """A first-order lag held toward ``target`` over a part of a step (``alpha = exp(-h/T)``)."""
+    return target + (value - target) * alpha
+
+
+@njit(cache=True)
+def freight_air_step(
+    params: np.ndarray, state: np.ndarray, er_kpa: np.ndarray, emergency: np.ndarray, dt: float
+) -> None:
+    """Advance the freight air brake by ``dt`` [s] (module docstring).
+
+    ``er_kpa[j]``: the pressure valve ``j`` holds its pipe at (the charged pressure:
+    release and recharge; lower: a service reduction); ``emergency[j] > 0.5``: valve ``j``
+    vents the pipe in emergency. Accurate for any ``dt`` (internally substepped to the
+    pipe's stability limit).
+    """
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    if dt <= 0.0:
+        return
+    n_sub = math.ceil(dt / params[P_H_MAX] - 1e-9)
+    n_sub = max(n_sub, 1)
+    h = dt / n_sub
+    ref = params[P_REF]
+    rho = params[P_RHO]
+    eps = params[P_EPS]
+    a_m = params[P_AR_M]
+    e_m = a_m * eps / rho
+    g = params[P_G]
+    s_app = params[P_S_APP]
+    s_rel = params[P_S_REL]
+    r_min = params[P_R_MIN]
+    qs_s = params[P_QS_S]
+    e_stage = params[P_E_STAGE]
+    speeds = np.array([params[P_C_REL], params[P_C_APP], params[P_C_EM]])
+    al_app = math.exp(-h / params[P_TAU_APP])
+    al_rel = math.exp(-h / params[P_TAU_REL])
+    al_qs = math.exp(-h / params[P_TAU_QS])
+    al_ev = math.exp(-h / params[P_TAU_EV])
+    al_e1 = math.exp(-h / params[P_TAU_E1])
+    al_e2 = math.exp(-h / params[P_TAU_E2])
+    tau_ch = params[P_TAU_CH]
+
+    x = params[P_HEAD + PB_X * n : P_HEAD + (PB_X + 1) * n]
+    ell = params[P_HEAD + PB_ELL * n : P_HEAD + (PB_ELL + 1) * n]
+    k = params[P_HEAD + PB_K * n : P_HEAD + (PB_K + 1) * n]
+    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    valve_at = params[P_HEAD + P_BLOCKS * n : P_HEAD + P_BLOCKS * n + nv]
+
+    base = ST_HEAD
+    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
+    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
+    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
+    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
+    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
+    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
+    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    launch = state[base + SB_LAUNCH * n : base + (SB_LAUNCH + 1) * n]
+    arrive = state[base + SB_ARRIVE * n : base + (SB_ARRIVE + 1) * n]
+    vbase = base + S_BLOCKS * n
+    fl0 = vbase + 2 * nv  # launch times, N_FRONTS per valve
+    ft0 = fl0 + nv * N_FRONTS  # types, N_FRONTS per valve
+
+    flux = np.zeros(n)
+    for _ in range(n_sub):
+        t = state[ST_T]
+        t_end = t + h
+        # 1. the valves: a new front when the command departs from the pipe at the valve
+        for j in range(nv):
+            v = int(valve_at[j])
+            vm = int(state[vbase + 2 * j + SV_MODE])
+            new_type = -1
+            if emergency[j] > 0.5:
+                if vm != PH_EMERGENCY:
+                    new_type = PH_EMERGENCY
+            elif vm == PH_RELEASE:
+                if er_kpa[j] < bp[v] - s_app:
+                    new_type = PH_APPLY
+            elif er_kpa[j] > bp[v] + s_rel:
+                new_type = PH_RELEASE
+            if new_type >= 0:
+                count = int(state[vbase + 2 * j + SV_COUNT])
+                slot = count % N_FRONTS
+                state[fl0 + j * N_FRONTS + slot] = t
+                state[ft0 + j * N_FRONTS + slot] = new_type
+                state[vbase + 2 * j + SV_COUNT] = count + 1
+                state[vbase + 2 * j + SV_MODE] = new_type
+        # 2. the fronts: each cell takes the type of the newest-launched front that reached it
+        for i in range(n):
+            best_launch = launch[i]
+            best_type = -1
+            best_arrive = 0.0
+            for j in range(nv):
+                distance = abs(x[i] - x[int(valve_at[j])])
+                for f in range(N_FRONTS):
+                    t_launch = state[fl0 + j * N_FRONTS + f]
+                    if t_launch <= best_launch:
+                        continue
+                    kind = int(state[ft0 + j * N_FRONTS + f])
+                    t_arrive = t_launch + distance / speeds[kind]
+                    if t_arrive <= t_end:
+                        best_launch = t_launch
+                        best_type = kind
+                        best_arrive = t_arrive
+            if best_type >= 0:
+                phase[i] = best_type
+                launch[i] = best_launch
+                arrive[i] = best_arrive
+                if braked[i] > 0.5:
+                    if best_type == PH_EMERGENCY:
+                        if mode[i] != MODE_EMERGENCY:
+                            # AR and ER join to feed the BC
+                            if eps > 0.0:
+                                merged = (rho * ar[i] + eps * er[i]) / (rho + eps)
+                                ar[i] = merged
+                                er[i] = merged
+                            mode[i] = MODE_EMERGENCY
+                            trig[i] = best_arrive
+                    elif (
+                        best_type == PH_APPLY
+                        and mode[i] == MODE_RELEASED
+                        and ar[i] + s_app >= bp[i]
+                    ):
+                        # quick service carried along by the front
+                        mode[i] = MODE_APPLIED
+                        a0[i] = ar[i]
+                        trig[i] = best_arrive
+        # 3. the distributors' own thresholds
+        for i in range(n):
+            if braked[i] < 0.5:
+                continue
+            if mode[i] == MODE_RELEASED:
+                if ar[i] - bp[i] > s_app:
+                    mode[i] = MODE_APPLIED
+                    a0[i] = ar[i]
+                    trig[i] = t
+            elif mode[i] == MODE_APPLIED:
+                if direct[i] > 0.5:
+                    if bp[i] > ar[i] + s_rel:
+                        mode[i] = MODE_RELEASED
+                elif bp[i] > ref - s_app:
+                    mode[i] = MODE_RELEASED
+            elif phase[i] != PH_EMERGENCY and bp[i] > ar[i] + s_rel:
+                mode[i] = MODE_RELEASED
+        # 4. flow along the pipe (explicit), only between cells of one phase
+        for i in range(n):
+            flux[i] = 0.0
+        for i in range(n - 1):
+            if phase[i] == phase[i + 1]:
+                q = k[i] * (bp[i] - bp[i + 1]) * h
+                flux[i] -= q
+                flux[i + 1] += q
+        for i in range(n):
+            bp[i] += flux[i] / ell[i]
+        # the valves hold their cells (exactly over the substep); in emergency they vent
+        for j in range(nv):
+            v = int(valve_at[j])
+            if int(state[vbase + 2 * j + SV_MODE]) != PH_EMERGENCY:
+                bp[v] = _relax(bp[v], er_kpa[j], math.exp(-h * g / ell[v]))
+        # 5. each vehicle's own exchanges
+        for i in range(n):
+            if phase[i] == PH_EMERGENCY:
+                bp[i] = bp[i] * al_ev
+            if braked[i] < 0.5:
+                continue
+            m = mode[i]
+            if m == MODE_EMERGENCY:
+                target = (rho * ar[i] + eps * er[i] + bc[i]) / (rho + eps + 1.0)
+                if bc[i] < target:
+                    alpha = al_e1 if bc[i] < e_stage else al_e2
+                    new_bc = _relax(bc[i], target, alpha)
+                    given = (new_bc - bc[i]) / (rho + eps)
+                    bc[i] = new_bc
+                    ar[i] -= given
+                    if eps > 0.0:
+                        er[i] -= given
+                continue
+            # quick service: vent the local pipe to the minimum reduction below the start
+            if m == MODE_APPLIED and t - trig[i] < qs_s:
+                floor = a0[i] - r_min
+                if bp[i] > floor:
+                    bp[i] = _relax(bp[i], floor, al_qs)
+            if direct[i] > 0.5:
+                if m == MODE_APPLIED:
+                    lap = min(bp[i], a0[i] - r_min)
+                    a_eq = ar[i] - max(ar[i] - bc[i], 0.0) / (1.0 + rho)
+                    target = max(lap, a_eq)
+                    if ar[i] > target:
+                        new_ar = _relax(ar[i], target, al_app)
+                        bc[i] += rho * (ar[i] - new_ar)
+                        ar[i] = new_ar
+                else:
+                    bc[i] = bc[i] * al_rel
+            else:
+                # graduated release: the BC follows rho (p_ref - p), above the threshold
+                demand = ref - bp[i]
+                want = rho * max(demand, r_min) if m == MODE_APPLIED else 0.0
+                if want > bc[i]:
+                    c_eq = bc[i] + rho * max(ar[i] - bc[i], 0.0) / (1.0 + rho)
+                    goal = min(want, c_eq)
+                    if goal > bc[i]:
+                        new_bc = _relax(bc[i], goal, al_app)
+                        ar[i] -= (new_bc - bc[i]) / rho
+                        bc[i] = new_bc
+                else:
+                    bc[i] = _relax(bc[i], want, al_rel)
+            # reservoirs charge from the pipe through their choke (exactly, pairwise)
+            charges_ar = (direct[i] > 0.5 and m == MODE_RELEASED) or direct[i] < 0.5
+            if charges_ar and bp[i] > ar[i]:
+                rate = (1.0 + a_m / ell[i]) / tau_ch
+                moved = (bp[i] - ar[i]) * (1.0 - math.exp(-rate * h)) / (1.0 / ell[i] + 1.0 / a_m)
+                bp[i] -= moved / ell[i]
+                ar[i] += moved / a_m
+            if eps > 0.0 and bp[i] > er[i]:
+                rate = (1.0 + e_m / ell[i]) / tau_ch
+                moved = (bp[i] - er[i]) * (1.0 - math.exp(-rate * h)) / (1.0 / ell[i] + 1.0 / e_m)
+                bp[i] -= moved / ell[i]
+                er[i] += moved / e_m
+        state[ST_T] = t_end
+
+
+# --- simulation helpers (tests, docs) -------------------------------------------------------
+
+
+def simulate(
+    params: np.ndarray,
+    state: np.ndarray,
+    er_kpa: np.ndarray,
+    emergency: np.ndarray,
+    duration_s: float,
+    dt: float,
+) -> dict[str, np.ndarray]:
+    """Step the kernel for ``duration_s`` [s] with the commands held; returns the end time of
+    each step and the pipe, AR and BC pressures after it (arrays ``(steps, n)``)."""
+    steps = round(duration_s / dt)
+    n = int(params[P_N])
+    out: dict[str, np.ndarray] = {key: np.empty((steps, n)) for key in ("bp", "ar", "bc")}
+    times = np.empty(steps)
+    er_cmd = np.asarray(er_kpa, dtype=float)
+    em_cmd = np.asarray(emergency, dtype=float)
+    for step in range(steps):
+        freight_air_step(params, state, er_cmd, em_cmd, dt)
+        times[step] = state[ST_T]
+        out["bp"][step] = bp_kpa(params, state)
+        out["ar"][step] = ar_kpa(params, state)
+        out["bc"][step] = bc_kpa(params, state)
+    out["t"] = times
+    return out
+
+
+def recharge_time_s(
+    brake: FreightAirBrake,
+    positions_m: np.ndarray,
+    valve_vehicles: np.ndarray,
+    *,
+    reduction_kpa: float | None = None,
+    hold_s: float = 240.0,
+    within_kpa: float = 10.0,
+    max_s: float = 3600.0,
+    dt: float = 0.05,
+) -> float:
+    """Time [s] from a release until every AR is within ``within_kpa`` of the charged
+    pressure, after a service reduction of ``reduction_kpa`` (None: full service) held
+    ``hold_s`` [s] by every valve (all direct release, all braked). ``inf`` if not within
+    ``max_s``."""
+    x = np.asarray(positions_m, dtype=float)
+    ones = np.ones(x.size, dtype=bool)
+    params, state = pack_freight_air(brake, x, np.asarray(valve_vehicles), ones, ones)
+    nv = int(params[P_NV])
+    depth = brake.full_service_reduction_kpa() if reduction_kpa is None else reduction_kpa
+    calm = np.zeros(nv)
+    simulate(params, state, np.full(nv, brake.charged_kpa - depth), calm, hold_s, dt)
+    charged = np.full(nv, brake.charged_kpa)
+    chunk = 5.0
+    elapsed = 0.0
+    while elapsed < max_s:
+        steps = round(chunk / dt)
+        for step in range(steps):
+            freight_air_step(params, state, charged, calm, dt)
+            if np.min(ar_kpa(params, state)) >= brake.charged_kpa - within_kpa:
+                return elapsed + (step + 1) * dt
+        elapsed += chunk
+    return math.inf
+
+
+def field_names() -> tuple[str, ...]:
+    """The configuration's keys (for a loader reading them from a file)."""
+    return tuple(f.name for f in fields(FreightAirBrake))
