@@ -21,6 +21,7 @@ from bad_values import BAD
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
+from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.brakes.lag_delay import LagDelay
 from railpilot.brakes.lag_delay_brake import LagDelayBrake
 from railpilot.brakes.locomotive_drive import LocomotiveDrive
@@ -31,15 +32,52 @@ from railpilot.eddy.table import TorqueTable
 from railpilot.eddy.torque_model import EddyBrakeParams
 from railpilot.eddy.train import TrainParams
 from railpilot.errors import ConfigError
+from railpilot.vehicle.consist import Consist, Vehicle
+from railpilot.vehicle.coupler import DraftGear
 from railpilot.vehicle.line import Line, Segment, Station
-from railpilot.vehicle.traction import Locomotive, RegenEnvelope, TractionEnvelope
+from railpilot.vehicle.traction import (
+    Locomotive,
+    RegenEnvelope,
+    TractionEnvelope,
+    hxd1_locomotive,
+)
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
+
+_GEAR = DraftGear("G", 0.01, 0.1, 1e5, 2e6, 0.2, 1e8, 1e5)
+_WAGON = {
+    "name": "W",
+    "kind": "wagon",
+    "mass_kg": 100e3,
+    "rotating_mass_factor": 0.02,
+    "length_m": 12.0,
+    "davis_a0": 0.92,
+    "davis_a1": 0.0048,
+    "davis_a2": 0.000125,
+    "service_brake_force_n": 50e3,
+    "distributor": "direct-release",
+    "draft_gear": _GEAR,
+}
+_LEAD = Vehicle(
+    **(
+        _WAGON
+        | {
+            "name": "L",
+            "kind": "locomotive",
+            "mass_kg": 200e3,
+            "length_m": 35.2,
+            "service_brake_force_n": 0.0,
+            "distributor": "none",
+            "locomotive": hxd1_locomotive(),
+        }
+    )  # type: ignore[arg-type]
+)
 
 #: every model class with constructor arguments to check, with the fewest that build it
 BASE: dict[type, dict[str, object]] = {
     # brakes
     BrakePipeBrake: {},
     EPBrake: {},
+    FreightAirBrake: {},
     LagDelay: {"lag_s": 0.5, "delay_s": 0.3, "dt": 0.01},
     LagDelayBrake: {},
     LocomotiveDrive: {},
@@ -59,6 +97,18 @@ BASE: dict[type, dict[str, object]] = {
     },
     ElectricBrakeCurve: {},
     Train: {},
+    DraftGear: {
+        "name": "G",
+        "slack_m": 0.01,
+        "travel_m": 0.1,
+        "preload_n": 1e5,
+        "force_at_travel_n": 2e6,
+        "unloading_ratio": 0.2,
+        "stop_stiffness_n_per_m": 1e8,
+        "damping_n_s_per_m": 1e5,
+    },
+    Vehicle: _WAGON,
+    Consist: {"name": "c", "vehicles": (_LEAD, Vehicle(**_WAGON))},  # type: ignore[arg-type]
     # eddy
     CoilParams: {},
     EddyBrakeParams: {},
@@ -101,6 +151,8 @@ ALLOWED: set[tuple[type, str, str]] = {
     (Station, "stop_m", "-1e300"),
     # names are any string
     *((cls, "name", v) for cls in (Station, Locomotive, EddyScenario) for v in _NAMES),
+    # a vehicle's, a consist's and a draft gear's name is any non-empty string
+    *((cls, "name", "str") for cls in (Vehicle, Consist, DraftGear)),
     (TorqueTable, "source", "str"),
     (TorqueTable, "source", "empty-str"),
     (EddyScenario, "table_csv", "str"),
