@@ -123,16 +123,50 @@ def test_a_change_smaller_than_the_sensitivity_applies_nothing():
     assert out["ar"].min() == P0  # the check valve keeps the AR charged
 
 
-@pytest.mark.parametrize("reduction_kpa", [35.0, 45.0])
-def test_the_first_application_is_at_least_the_minimum_reduction(reduction_kpa):
-    """A reduction between ``r_min - s_rel`` and ``r_min`` applies every distributor as
-    if by ``r_min`` (quick service); the settled BC is ``rho r_min``."""
+@pytest.mark.parametrize("reduction_kpa", [12.0, 20.0])
+def test_a_small_first_reduction_applies_at_least_the_quick_service_depth(reduction_kpa):
+    """A reduction between the application sensitivity and the quick service's depth
+    ``q`` applies every distributor as if by ``q`` (the local venting); the settled BC is
+    ``rho q``, and the pipe settling back above it releases none of them."""
     x = train(40)
     params, state = packed(x)
     out = simulate(params, state, np.array([P0 - reduction_kpa]), np.zeros(1), 150.0, DT)
     expected = service_bc_kpa(BRAKE, P0, out["bp"][-1])
-    assert_allclose(expected[1:], BRAKE.ar_to_bc_ratio * BRAKE.min_reduction_kpa)
+    assert_allclose(expected[1:], BRAKE.ar_to_bc_ratio * BRAKE.quick_service_kpa)
     assert_allclose(out["bc"][-1, 1:], expected[1:], atol=0.5)
+
+
+def test_a_minimum_reduction_on_a_train_not_recharged_brakes_weaker_and_holds():
+    """Released after a full service and reduced by the minimum again before the AR have
+    recharged (the head's recharge first, the rear's last): every distributor brakes less
+    than a charged train's minimum application ``rho r_min``, the less the further back
+    it is; at the rear, whose reservoirs were charged least, the brakes stay released or
+    release again (the pipe there is still drawn down by the reservoirs charging)."""
+    x = train(110)  # a 10,000 t train: minutes to recharge
+    params, state = packed(x)
+    full = np.array([P0 - BRAKE.full_service_reduction_kpa()])
+    simulate(params, state, full, np.zeros(1), 200.0, DT)
+    simulate(params, state, np.array([P0]), np.zeros(1), 240.0, DT)
+    assert np.all(fa.bc_kpa(params, state) < 0.5)  # released
+    before = fa.ar_kpa(params, state).copy()
+    assert np.all(before[1:] < P0 - BRAKE.application_sensitivity_kpa)  # not recharged
+    out = simulate(
+        params, state, np.array([P0 - BRAKE.min_reduction_kpa]), np.zeros(1), 300.0, DT
+    )
+    bc, ar = out["bc"][:, 1:], out["ar"][:, 1:]
+    charged_min = BRAKE.ar_to_bc_ratio * BRAKE.min_reduction_kpa
+    settled = bc[-1]
+    applied = settled > 1.0
+    assert applied[0] and not applied[-1]
+    assert np.all(settled < charged_min - 5.0)
+    assert np.all(np.diff(settled) <= 1.0)  # weaker towards the rear
+    assert settled.mean() < 0.6 * charged_min
+    # the head's applied from the moment the reduction reached it, never released since
+    head = bc[:, 0]
+    k = int((head > 1.0).argmax())
+    assert np.all(head[k:] > 1.0)
+    # and holds the air its reservoir gave (the mass balance)
+    assert settled[0] == pytest.approx(BRAKE.ar_to_bc_ratio * (before[1] - ar[-1, 0]), abs=1.0)
 
 
 def test_graduated_steps_raise_the_bc_monotonically_to_the_mass_balance():
@@ -241,6 +275,7 @@ def test_without_quick_service_the_build_up_matches_the_point_model(length_m):
     the flow cell by cell)."""
     brake = FreightAirBrake(
         min_reduction_kpa=1.0,
+        quick_service_kpa=0.5,
         application_sensitivity_kpa=0.5,
         release_sensitivity_kpa=0.5,
         quick_service_max_s=1e-3,

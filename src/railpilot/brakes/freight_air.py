@@ -27,8 +27,8 @@ With several valves each vehicle is reached first by the nearest one.
 Distributor, direct release (Chinese 120, AAR ABD)::
 
     start      A - p > s_app, or an application front arrives at a charged distributor
-               (quick service: the local pipe is vented to A0 - r_min)
-    apply      A -> max(min(p, A0 - r_min), A_eq) with lag T_a;  C += rho (-dA)
+               (quick service: the local pipe is vented to A0 - q)
+    apply      A -> max(min(p, A0 - q), A_eq) with lag T_a;  C += rho (-dA)
     release    p > A + s_rel: C -> 0 with lag T_r; then A charges from the pipe
     emergency  an emergency front: local pipe vented to 0; AR (+ ER) -> BC in two stages
 
@@ -81,7 +81,7 @@ MODE_RELEASED, MODE_APPLIED, MODE_EMERGENCY = 0, 1, 2
     P_C_EM,  # emergency front speed [m/s]
     P_S_APP,  # application sensitivity [kPa]
     P_S_REL,  # release sensitivity [kPa]
-    P_R_MIN,  # minimum reduction [kPa]
+    P_QS_DEPTH,  # quick service: the local pipe vented this far below the AR [kPa]
     P_TAU_APP,  # AR -> BC lag [s]
     P_TAU_REL,  # BC exhaust lag [s]
     P_TAU_CH,  # AR / ER charging choke lag [s]
@@ -141,7 +141,15 @@ class FreightAirBrake:
     charged_kpa
         Charged brake-pipe pressure [kPa] (600; the Chinese settings are 500 and 600).
     min_reduction_kpa
-        Minimum service reduction [kPa] (50): the first application's least depth.
+        Minimum service reduction [kPa] (50): the least first reduction a driver makes at
+        the brake valve (a driving rule; the consist run refuses a smaller one).
+    quick_service_kpa
+        How far below its AR's pressure at the start of an application a distributor's
+        quick service vents the local pipe [kPa] (25, assumed): the least application
+        ``rho q`` of a charged distributor. Above the application sensitivity, and no
+        more than it plus the release sensitivity, so that the pipe settling back behind
+        a small reduction never releases the brake it applied (an AR drained by the quick
+        service to ``A0 - q`` stays within ``s_rel`` of a pipe at ``A0 - s_app``).
     ar_to_bc_ratio
         ``rho = V_AR / V_BC`` (2.5: BC = 2.5 x reduction, full service 170 kPa -> 420-430
         kPa at 600 kPa).
@@ -178,6 +186,7 @@ class FreightAirBrake:
 
     charged_kpa: float = 600.0
     min_reduction_kpa: float = 50.0
+    quick_service_kpa: float = 25.0
     ar_to_bc_ratio: float = 2.5
     er_to_bc_ratio: float = 0.0
     ar_volume_l: float = 40.0
@@ -267,6 +276,17 @@ class FreightAirBrake:
                 "reduction)",
                 error=ConfigError,
             )
+        s_app, s_rel = self.application_sensitivity_kpa, self.release_sensitivity_kpa
+        check_number(
+            "air.quick_service_kpa",
+            self.quick_service_kpa,
+            minimum=s_app,
+            maximum=min(s_app + s_rel, self.min_reduction_kpa),
+            allowed=f"a depth in [{s_app:g}, {min(s_app + s_rel, self.min_reduction_kpa):g}] "
+            "kPa (the application sensitivity, to the least of it plus the release "
+            "sensitivity and the minimum reduction)",
+            error=ConfigError,
+        )
         check_number(
             "air.emergency_stage_kpa",
             self.emergency_stage_kpa,
@@ -347,13 +367,13 @@ def service_bc_kpa(
     with its AR at ``ar_start_kpa`` and its BC at ``bc_start_kpa``, with the pipe now at
     ``bp_kpa``.
 
-    The AR laps at the pipe, but at least the minimum reduction below its start, and not
+    The AR laps at the pipe, but at least the quick service's depth below its start, and not
     below equalization; the BC receives the air it gives: ``C = C0 + rho (A0 - A)``.
     """
     rho = brake.ar_to_bc_ratio
     a0 = np.asarray(ar_start_kpa, dtype=float)
     c0 = np.asarray(bc_start_kpa, dtype=float)
-    lap = np.minimum(np.asarray(bp_kpa, dtype=float), a0 - brake.min_reduction_kpa)
+    lap = np.minimum(np.asarray(bp_kpa, dtype=float), a0 - brake.quick_service_kpa)
     a_eq = a0 - np.maximum(a0 - c0, 0.0) / (1.0 + rho)
     a_end = np.minimum(np.maximum(lap, a_eq), a0)
     return np.asarray(c0 + rho * (a0 - a_end))
@@ -454,7 +474,7 @@ def pack_freight_air(
     p[P_C_EM] = brake.emergency_wave_mps
     p[P_S_APP] = brake.application_sensitivity_kpa
     p[P_S_REL] = brake.release_sensitivity_kpa
-    p[P_R_MIN] = brake.min_reduction_kpa
+    p[P_QS_DEPTH] = brake.quick_service_kpa
     p[P_TAU_APP] = application_lag_s(brake.application_time_s)
     p[P_TAU_REL] = release_lag_s(brake.release_time_s)
     p[P_TAU_CH] = brake.charge_lag_s
@@ -517,6 +537,12 @@ def er_kpa_of(params: np.ndarray, state: np.ndarray) -> np.ndarray:
 
 
 @njit(cache=True)
+def ar_at_application_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
+    """Each distributor's AR pressure when its latest application started [kPa] (a view)."""
+    return _state_block(params, state, SB_A0)
+
+
+@njit(cache=True)
 def front_arrival_s(params: np.ndarray, state: np.ndarray) -> np.ndarray:
     """When the newest front reached each vehicle [s] (a view; -1e30 if none has)."""
     return _state_block(params, state, SB_ARRIVE)
@@ -568,7 +594,7 @@ def freight_air_step(
     g = params[P_G]
     s_app = params[P_S_APP]
     s_rel = params[P_S_REL]
-    r_min = params[P_R_MIN]
+    q_depth = params[P_QS_DEPTH]
     qs_s = params[P_QS_S]
     e_stage = params[P_E_STAGE]
     speeds = np.array([params[P_C_REL], params[P_C_APP], params[P_C_EM]])
@@ -716,14 +742,14 @@ def freight_air_step(
                     if eps > 0.0:
                         er[i] -= given
                 continue
-            # quick service: vent the local pipe to the minimum reduction below the start
+            # quick service: vent the local pipe to its depth below the AR's start
             if m == MODE_APPLIED and t - trig[i] < qs_s:
-                floor = a0[i] - r_min
+                floor = a0[i] - q_depth
                 if bp[i] > floor:
                     bp[i] = _relax(bp[i], floor, al_qs)
             if direct[i] > 0.5:
                 if m == MODE_APPLIED:
-                    lap = min(bp[i], a0[i] - r_min)
+                    lap = min(bp[i], a0[i] - q_depth)
                     a_eq = ar[i] - max(ar[i] - bc[i], 0.0) / (1.0 + rho)
                     target = max(lap, a_eq)
                     if ar[i] > target:
@@ -735,7 +761,7 @@ def freight_air_step(
             else:
                 # graduated release: the BC follows rho (p_ref - p), above the threshold
                 demand = ref - bp[i]
-                want = rho * max(demand, r_min) if m == MODE_APPLIED else 0.0
+                want = rho * max(demand, q_depth) if m == MODE_APPLIED else 0.0
                 if want > bc[i]:
                     c_eq = bc[i] + rho * max(ar[i] - bc[i], 0.0) / (1.0 + rho)
                     goal = min(want, c_eq)
