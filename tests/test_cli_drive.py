@@ -99,7 +99,8 @@ def test_the_plan_keeps_the_margin_below_the_mrsp() -> None:
     s = outcome.plan.s_m
     # the MRSP under the whole train, at the planner's grid (head positions)
     x = outcome.km_post(s)
-    ceiling = np.minimum(outcome.mrsp.at(x), outcome.mrsp.at(x - 1600.0))
+    length = outcome.train_length_m
+    ceiling = np.minimum(outcome.mrsp.at(x), outcome.mrsp.at(x - length))
     allowed = np.maximum(ceiling - 5.0 / 3.6, ceiling / 2.0)
     assert np.all(outcome.plan.speed_mps <= allowed + 1e-9)
 

@@ -34,11 +34,14 @@ from railpilot.errors import RailpilotError
 from railpilot.line.loader import line_from_mapping, parse_line
 from railpilot.link.keys import load_key_file, parse_key_table
 from railpilot.onboard.timetable import load_timetable, parse_timetable
+from railpilot.scenario.consist_file import load_consist, parse_consist
+from railpilot.scenario.consist_scenario import consist_scenario_from_mapping
 from railpilot.scenario.loader import load_scenario, scenario_and_spec_from_mapping
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 LINE_DATA = ROOT / "src" / "railpilot" / "line" / "data"
+CONSISTS = ROOT / "src" / "railpilot" / "vehicle" / "data" / "consists"
 
 EXTREMES: dict[str, Any] = {
     "10**400": 10**400,
@@ -66,6 +69,8 @@ def _scenario(data: dict[str, Any]) -> object:
     """As railpilot.scenario.load_scenario / load_scenario_and_spec read a mapping."""
     if data.get("kind") == "eddy-brake":
         return EddyScenario.from_mapping(data)
+    if data.get("kind") == "train-dynamics":
+        return consist_scenario_from_mapping(data, EXAMPLES)
     return scenario_and_spec_from_mapping(data)
 
 
@@ -78,6 +83,8 @@ def _loader(name: str, data: dict[str, Any]) -> Callable[[dict[str, Any]], objec
         return line_from_mapping
     if "services" in data:
         return line_run_from_mapping  # a line-run file (railpilot line ...)
+    if name.startswith("consist "):
+        return lambda mapping: parse_consist(mapping, name)
     return _scenario
 
 
@@ -88,6 +95,7 @@ FILES: dict[str, Callable[[], str]] = {
         for n in ("heavy_haul.toml", "metro.toml", "heavy_haul_timetable.toml")
     },
     "key table": lambda: KEY_FILE,
+    **{f"consist {p.name}": p.read_text for p in sorted(CONSISTS.glob("*.toml"))},
 }
 
 
@@ -180,6 +188,7 @@ READERS: dict[str, Callable[[Path], object]] = {
     "line run": load_line_run,
     "timetable": load_timetable,
     "key file": load_key_file,
+    "consist": load_consist,
 }
 
 

@@ -306,5 +306,6 @@ def test_knock_on_prints_each_trains_difference(tmp_path, capsys):
     assert out["own_train"] == 101 and list(out["trains"]) == ["101"]
     row = out["trains"]["101"]["arrival_delay_s"]
     assert row["knock_on"] == pytest.approx(row["with"] - row["without"], abs=0.15)
-    assert row["knock_on"] >= 0.9 * 120.0  # at least (about) its 2 minutes' stand
+    # most of its 2 minutes' stand (the running-time supplement recovers some of it)
+    assert row["knock_on"] >= 0.75 * 120.0
     assert out["knock_on_others_s"] == 0.0  # no other train

@@ -132,12 +132,15 @@ def test_the_baseline_runs_the_same_day_without_advice(advised, baseline):
     assert kpis["baseline"]["tsr_violations"] == 0
     assert kpis["baseline"]["target_points_passed"] == 0
     assert kpis["baseline"]["overspeeds"] == 0, base.overspeeds
-    # the baseline drives to the limits: its first train (ahead of the failure's effects
-    # on it) runs the first section faster than the advised plan
-    assert (
-        base.drivers[101].sections[0].running_time_s
-        < advised.drivers[101].sections[0].running_time_s
-    )
+    # the baseline drives to the limits: no train of it runs its section slower than the
+    # advised plan, and one at least faster (where the delays behind the failure left the
+    # advised plan any time to spare)
+    times = [
+        (base.drivers[i].sections[0].running_time_s, run.sections[0].running_time_s)
+        for i, run in advised.drivers.items()
+    ]
+    assert all(fast <= planned + 1e-6 for fast, planned in times)
+    assert any(fast < planned for fast, planned in times)
 
 
 def test_the_static_limits_are_checked_where_the_trains_reach_them(day, baseline):

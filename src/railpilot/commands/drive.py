@@ -59,6 +59,14 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         metavar="KMH",
         help="the plan keeps this far below the MRSP [km/h] (default 5)",
     )
+    p.add_argument(
+        "--model",
+        choices=("consist", "point-mass"),
+        default="consist",
+        help="the train that follows the plan: every vehicle of its consist with couplers and "
+        "the freight air brake along the train (default), or the point mass with the "
+        "precise-stop controller (docs/consist-run.md)",
+    )
     p.add_argument("--out", type=out_dir_argument, help="write the figures here")
     p.add_argument("--json", action="store_true", help="print one JSON object")
     p.set_defaults(func=run)
@@ -113,6 +121,14 @@ def _check_on_line(
 
 
 def run(args: argparse.Namespace) -> int:
+    try:
+        return _run(args)
+    except DriveNotFinished as exc:
+        log(f"railpilot: error: {exc}")
+        return 1
+
+
+def _run(args: argparse.Namespace) -> int:
     from railpilot.line import load_line
     from railpilot.onboard.drive import TargetRequest, TsrRequest, drive, train_preset
 
@@ -145,7 +161,9 @@ def run(args: argparse.Namespace) -> int:
         tsrs=tsrs,
         targets=targets,
         margin_kmh=args.margin,
+        model=args.model,
     )
+    _check_arrived(outcome)
     summary = outcome.summary()
     if args.out is not None:
         summary["figures"] = _save_figures(args.out, line.name, outcome)
@@ -160,6 +178,48 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['stop_error_m']:.2f} m"
         )
     return 0
+
+
+class DriveNotFinished(Exception):
+    """The train did not come to its stop: the command says why and exits 1."""
+
+
+def _check_arrived(outcome: DriveOutcome) -> None:
+    """A drive whose train did not come to its stop says so and fails (no NaN printed)."""
+    import math
+
+    if not math.isfinite(outcome.result.metrics["running_time_s"]):
+        r = outcome.result
+        raise DriveNotFinished(
+            f"the train did not stop at station {outcome.to_station} within the run's "
+            f"{float(r['time_s'][-1]):.0f} s: its head is at km "
+            f"{float(outcome.km_post(r['position_m'][-1:])[0]) / 1000.0:.3f}, "
+            f"{float(r['speed_mps'][-1]) * 3.6:.1f} km/h"
+        )
+
+
+def _consist_totals(results: list[dict[str, object]]) -> dict[str, object]:
+    """The consist metrics over a timetable's sections: the worst forces and recharge
+    margin, the summed times and counts."""
+    from railpilot.onboard.consist_drive import CONSIST_METRICS
+
+    if not results or CONSIST_METRICS[0] not in results[0]:
+        return {}
+    worst = {"max_coupler_tension_kn": max, "max_coupler_compression_kn": max}
+    out: dict[str, object] = {}
+    for key in CONSIST_METRICS:
+        values: list[float] = [
+            float(r[key])  # type: ignore[arg-type]
+            for r in results
+            if r[key] is not None and r[key] == r[key]
+        ]
+        if key == "min_recharge_margin_s":
+            out[key] = min(values) if values else None
+        elif key == "coupler_force_limit_kn":
+            out[key] = results[0][key]
+        else:
+            out[key] = worst.get(key, sum)(values)
+    return out
 
 
 def _save_figures(out: Path, line_name: str, outcome: DriveOutcome) -> list[str]:
@@ -193,7 +253,9 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
             targets=targets,
             margin_kmh=args.margin,
             start_time_s=clock_s,
+            model=args.model,
         )
+        _check_arrived(outcome)
         clock_s += outcome.result.metrics["running_time_s"]
         summary = outcome.summary()
         summary["from"] = section.from_id
@@ -221,6 +283,8 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
         "max_overspeed_kmh": max(r["max_overspeed_kmh"] for r in results),
         "target_points_passed": sum(r["target_points_passed"] for r in results),
         "max_abs_stop_error_m": max(abs(r["stop_error_m"]) for r in results),
+        "model": args.model,
+        **_consist_totals(results),
         "tsr_checks": [c for r in results for c in r["tsr_checks"]],
         "replans": [
             dict(p, section=f"{r['from']}-{r['to']}") for r in results for p in r["replans"]

@@ -42,6 +42,8 @@ def run(args: argparse.Namespace) -> int:
     data = read_toml(args.scenario)
     if data.get("kind") == "eddy-brake":
         return _run_eddy(args, data)
+    if data.get("kind") == "train-dynamics":
+        return _run_dynamics(args, data)
     scenario = scenario_from_mapping(data)  # validates everything before running
     from railpilot.sim.run import simulate
 
@@ -108,3 +110,78 @@ def _run_eddy(args: argparse.Namespace, data: dict[str, Any]) -> int:
         for f in files:
             log(f"wrote {f}")
     return 0
+
+
+def _run_dynamics(args: argparse.Namespace, data: dict[str, Any]) -> int:
+    """A ``train-dynamics`` scenario: a consist driven along a line by a script (and, if
+    the file asks, the same again without distributed power)."""
+    from dataclasses import replace
+
+    from railpilot.errors import ScenarioError
+    from railpilot.scenario.consist_scenario import consist_scenario_from_mapping
+    from railpilot.sim.consist_run import run_consist
+
+    if args.controller is not None:
+        raise ScenarioError(
+            "--controller",
+            args.controller,
+            "none: a train-dynamics scenario is driven by its script",
+        )
+    scenario = consist_scenario_from_mapping(data, base_dir=args.scenario.parent)
+    runs = {"": run_consist(scenario)}
+    if scenario.sim.compare_without_distributed_power:
+        alone = replace(scenario, sim=replace(scenario.sim, distributed_power=False))
+        runs = {"with_distributed_power": runs[""], "without_distributed_power": run_consist(alone)}
+    files: list[str] = []
+    if args.out is not None:
+        args.out.mkdir(parents=True, exist_ok=True)
+        for label, result in runs.items():
+            files += _write_dynamics(args.out, file_stem(scenario.name, label), result)
+    if args.json:
+        out: dict[str, Any] = {"scenario": scenario.name, "consist": scenario.consist.name}
+        if "" in runs:
+            out |= {"metrics": runs[""].summary(), "events": runs[""].events}
+        else:
+            out["runs"] = {
+                label: {"metrics": r.summary(), "events": r.events} for label, r in runs.items()
+            }
+        print_json(out | {"files": files})
+    else:
+        print(f"{scenario.name}  consist={scenario.consist.name}")
+        for label, result in runs.items():
+            if label:
+                print(f" {label.replace('_', ' ')}:")
+            for key, value in result.summary().items():
+                shown = value if not isinstance(value, float) else f"{value:.4g}"
+                print(f"  {key:38s} {'n/a' if value is None else shown}")
+        for f in files:
+            log(f"wrote {f}")
+    return 0
+
+
+def _write_dynamics(out: Path, stem: str, result: Any) -> list[str]:
+    """A consist run's files: its series (CSV), its fields along the train (NPZ) and its
+    three figures."""
+    import numpy as np
+
+    from railpilot.report import consist_plots
+    from railpilot.report.figure import save_figure
+
+    series = out / f"{stem}.csv"
+    np.savetxt(
+        series,
+        np.column_stack(list(result.series.values())),
+        delimiter=",",
+        header=",".join(result.series),
+        comments="",
+    )
+    along = out / f"{stem}_fields.npz"
+    np.savez_compressed(along, **result.fields, time_s=result.series["time_s"])
+    files = [str(series), str(along)]
+    for figure, kind in (
+        (consist_plots.coupler_heat_map(result), "coupler_forces"),
+        (consist_plots.brake_pipe_along_train(result), "brake_pipe"),
+        (consist_plots.run_overview(result), "overview"),
+    ):
+        files.append(str(save_figure(figure, out / f"{stem}_{kind}.png")))
+    return files

@@ -31,6 +31,7 @@ from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TargetPoint, TargetReason, TravelDirection, TsrSet
 from railpilot.onboard.braking import BrakingTrain, TsrCheck, tsr_check
+from railpilot.onboard.consist_drive import CONSIST_METRICS, ConsistDrive
 from railpilot.onboard.mrsp import (
     FloatArray,
     Mrsp,
@@ -59,11 +60,15 @@ from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.result import SimResult
 from railpilot.sim.stepper import Stepper
 from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps, mps_to_kmh
+from railpilot.vehicle.consist import Consist, consist_preset
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import ResistanceTable, elevation_table, mean_specific_resistance
-from railpilot.vehicle.traction import hxd1_locomotive
 from railpilot.vehicle.train import Train
 
+#: the trains that can follow the plan: the point mass, or every vehicle of the consist
+MODELS = ("point-mass", "consist")
+#: the consist model's longest step [s] (its air brake's)
+CONSIST_MAX_DT_S = 0.05
 #: the running-time supplement over the fastest run when none is given
 DEFAULT_SUPPLEMENT = 0.10
 #: the onboard aims this far short of a target stop [m]: the heavy-haul precise stop's
@@ -76,12 +81,17 @@ DEFAULT_MARGIN_KMH = 5.0
 
 @dataclass(frozen=True)
 class TrainPreset:
-    """A train the command line can name: its physics and its speed-limit category."""
+    """A train the command line can name: its physics and its speed-limit category.
+
+    ``consist``: the vehicles it is made of (vehicle/consist.py), from which ``train``,
+    the point mass the planner and the fast model use, is derived.
+    """
 
     name: str
     category: str
     train: Train
     brake: LocomotiveDrive
+    consist: Consist | None = None
 
     @property
     def braking(self) -> BrakingTrain:
@@ -92,53 +102,40 @@ class TrainPreset:
         return DrivingTrain(self.train, self.brake.locomotive)
 
 
-def heavy_haul_loaded() -> TrainPreset:
-    """The 10,000 t, 1,600 m train of examples/heavy_haul_run.toml (one HXD1, brake pipe G).
+def preset_of_consist(name: str, category: str, consist: Consist) -> TrainPreset:
+    """A heavy-haul preset from its consist: the point mass the consist derives, hauled by
+    its lead locomotive's drive, with the brake pipe's full service at the consist's own
+    brake force (its ``max_service_decel_mps2``).
 
-    Without that example's 50 km/h handover from regeneration to air: the precise-stop
-    controller leads the air brake itself, and regeneration to its own fade stops the
-    sections closer to their times and returns more energy (docs/precise-stop.md).
-    tests/onboard/test_drive_events.py checks the two agree in everything else.
+    Without a handover from regeneration to air (the example scenario's 50 km/h): the
+    precise-stop controller leads the air brake itself, and regeneration to its own fade
+    stops the sections closer to their times and returns more energy (docs/precise-stop.md).
     """
-    train = Train(
-        mass_kg=10_000e3,
-        rotating_mass_factor=0.06,
-        length_m=1600.0,
-        davis_a0=0.92,
-        davis_a1=0.0048,
-        davis_a2=0.000125,
-        max_service_decel_mps2=0.5,
-    )
+    train = consist.point_mass_train()
+    lead = consist.vehicles[int(consist.locomotive_indices()[0])].locomotive
+    assert lead is not None  # a consist's first vehicle is its lead locomotive
     brake = LocomotiveDrive(
-        locomotive=hxd1_locomotive(),
+        locomotive=lead,
         traction_lag_s=1.0,
-        air=BrakePipeBrake(max_decel_mps2=0.5),
+        air=BrakePipeBrake(max_decel_mps2=train.max_service_decel_mps2),
         handover_kmh=0.0,
     )
-    return TrainPreset("heavy-haul-loaded", "freight_loaded", train, brake)
+    return TrainPreset(name, category, train, brake, consist)
+
+
+def heavy_haul_loaded() -> TrainPreset:
+    """The 10,000 t coal train: one HXD1 and 105 loaded C80 wagons (docs/consist.md)."""
+    return preset_of_consist(
+        "heavy-haul-loaded", "freight_loaded", consist_preset("heavy-haul-10kt")
+    )
 
 
 def heavy_haul_empty() -> TrainPreset:
-    """The same train returning empty: one HXD1 and 100 C80 wagons at their tare.
-
-    An assumption (paper 001 gives no empty train): 100 wagons of 20 t tare and the
-    locomotive's 200 t make 2,200 t on the same 1,600 m. Davis resistance is specific
-    [N/kN]: the rolling terms are kept, the air term is scaled up by the mass ratio so that
-    the aerodynamic force is the loaded train's (the same frontal area and length). The
-    heavy-haul line's ``freight_empty`` limits.
-    """
-    loaded = heavy_haul_loaded()
-    mass_ratio = loaded.train.mass_kg / 2_200e3
-    train = Train(
-        mass_kg=2_200e3,
-        rotating_mass_factor=0.08,
-        length_m=1600.0,
-        davis_a0=loaded.train.davis_a0,
-        davis_a1=loaded.train.davis_a1,
-        davis_a2=loaded.train.davis_a2 * mass_ratio,
-        max_service_decel_mps2=0.5,
+    """The same train returning empty: one HXD1 and 105 C80 wagons at their tare; the
+    heavy-haul line's ``freight_empty`` limits."""
+    return preset_of_consist(
+        "heavy-haul-empty", "freight_empty", consist_preset("heavy-haul-10kt-empty")
     )
-    return TrainPreset("heavy-haul-empty", "freight_empty", train, loaded.brake)
 
 
 #: the trains ``railpilot drive --train`` knows
@@ -278,6 +275,8 @@ class DriveOutcome:
             "planned_energy_regenerated_kwh": self.plan.energy_regenerated_kwh,
             "max_speed_kmh": metrics["max_speed_kmh"],
             "max_overspeed_kmh": max(0.0, float(mps_to_kmh(np.max(over)))),
+            "model": r.meta.get("model", "point-mass"),
+            **{key: metrics[key] for key in CONSIST_METRICS if key in metrics},
             "target_points_passed": passed,
             "tsr_checks": list(self.tsr_checks),
             "replans": [
@@ -335,6 +334,7 @@ def drive(
     margin_kmh: float = DEFAULT_MARGIN_KMH,
     dt_s: float = 0.1,
     start_time_s: float = 0.0,
+    model: str = "point-mass",
 ) -> DriveOutcome:
     """Plan and drive ``preset`` from station ``from_station`` to ``to_station`` (ids).
 
@@ -345,8 +345,15 @@ def drive(
     while running makes it re-plan from where the train is for the time that remains (and
     check a TSR there, as the paper does); a target point that clears lets it go on.
     ``margin_kmh``: the plan's ceiling is ``max(C - margin, C / 2)`` of the whole-train
-    MRSP ``C``.
+    MRSP ``C``. ``model``: the train that follows the plan, ``"point-mass"`` (the
+    simulation core with the precise-stop controller) or ``"consist"`` (every vehicle a
+    mass, the freight air brake along the train: onboard/consist_drive.py; at most a
+    0.05 s step).
     """
+    if model not in MODELS:
+        raise ConfigError("--model", model, f"one of {', '.join(MODELS)}")
+    if model == "consist" and preset.consist is None:
+        raise ConfigError("--model", model, f"point-mass: {preset.name} has no consist")
     route = station_route(
         line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s
     )
@@ -367,16 +374,29 @@ def drive(
         for tsr in known
         if route.entry_ahead(tsr, 0.0)
     ]
-    stepper = Stepper(
-        drive_scenario(preset, route.vehicle_line, planned, dt_s),
-        stop_controller(preset, route.vehicle_line, end_s, dt_s),
-    )
+    duration_s = max(900.0, 2.5 * planned.running_time_s)
+    stepper: Stepper | ConsistDrive
+    if model == "consist":
+        assert preset.consist is not None
+        stepper = ConsistDrive(
+            preset.consist,
+            route.vehicle_line,
+            PlannedProfile(planned.s_m, planned.speed_mps),
+            end_s,
+            min(dt_s, CONSIST_MAX_DT_S),
+            duration_s,
+        )
+    else:
+        stepper = Stepper(
+            drive_scenario(preset, route.vehicle_line, planned, dt_s, duration_s),
+            stop_controller(preset, route.vehicle_line, end_s, dt_s),
+        )
     timeline = [(0.0, mrsp)]
     replans: list[Replan] = []
     for t_event in route.event_times():
         stepper.advance_to(t_event)
         arrived = stepper.at_rest and end_s >= route.length_m
-        if arrived or stepper.step * dt_s >= stepper.scenario.sim.duration_s:
+        if arrived or stepper.time_s >= duration_s:
             break  # what comes later concerns the next section
         new = route.mrsp_at(t_event)
         if new == timeline[-1][1]:
@@ -399,8 +419,12 @@ def drive(
             checks.append(
                 _tsr_check_now(preset, route.table, tsr, direction, departure, s_now, v_now)
             )
-        stepper.replace_reference(PlannedProfile(again.s_m + s_now, again.speed_mps))
-        retarget(stepper.controller_params, stepper.controller_state, end_s)
+        profile = PlannedProfile(again.s_m + s_now, again.speed_mps)
+        if isinstance(stepper, ConsistDrive):
+            stepper.follow(profile, end_s)
+        else:
+            stepper.replace_reference(profile)
+            retarget(stepper.controller_params, stepper.controller_state, end_s)
         if stepper.at_rest:
             stepper.restart()
     stepper.run_to_end()

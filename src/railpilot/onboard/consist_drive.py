@@ -1,0 +1,157 @@
+"""The onboard's drive of a station pair on the consist model.
+
+The plan is the onboard's (its planner works on the point-mass train the consist derives,
+vehicle/consist.py); the train that follows it is the consist: every vehicle a mass,
+couplings with slack and draft gears, the freight air brake along the train, the remote
+units by radio (sim/consist_run.py). The driver follows the planned curve with traction
+and regeneration, uses the air brake in cycles where regeneration cannot hold it, and
+stops with the air brake at the section's end. :class:`ConsistDrive` offers what the
+drive's event loop (onboard/drive.py) needs of a run: advance to a time, where the train
+is, a new plan from here, the result.
+"""
+
+from __future__ import annotations
+
+import math
+
+from railpilot.brakes.freight_air import FreightAirBrake
+from railpilot.sim.consist_run import (
+    C_ENDED,
+    C_REDUCTION,
+    C_STOPPING,
+    ConsistDriver,
+    ConsistRunSettings,
+    ConsistScenario,
+    ConsistStepper,
+    DriverCommand,
+)
+from railpilot.sim.drive_profile import PlannedProfile
+from railpilot.sim.result import SimResult
+from railpilot.vehicle.consist import Consist
+from railpilot.vehicle.line import Line
+
+#: the consist metrics a drive's summary reports beside the point-mass ones
+CONSIST_METRICS = (
+    "max_coupler_tension_kn",
+    "max_coupler_compression_kn",
+    "coupler_force_limit_kn",
+    "coupler_force_limit_exceeded_s",
+    "air_brake_applications",
+    "air_brake_releases",
+    "min_recharge_margin_s",
+)
+
+
+#: the energy metrics a drive's summary reads, by the names both models give them
+ENERGY_METRICS = (
+    "energy_traction_kwh",
+    "energy_regenerated_kwh",
+    "energy_traction_against_air_kwh",
+    "max_speed_kmh",
+)
+
+
+def _number(value: float | int | None) -> float:
+    """A metric as a float (nan where the run has none)."""
+    return math.nan if value is None else float(value)
+
+
+#: the reduction a stop is made with [kPa]
+STOP_REDUCTION_KPA = 70.0
+
+
+def stop_decel_mps2(consist: Consist, air: FreightAirBrake, reduction_kpa: float) -> float:
+    """The deceleration [m/s^2] a charged train's ``reduction_kpa`` gives once built up:
+    every braked vehicle's cylinder at ``rho r`` (the mass balance, brakes/freight_air.py),
+    its force in proportion to its full-service force, on the train's effective mass."""
+    bc_kpa = min(air.ar_to_bc_ratio * reduction_kpa, air.full_service_bc_kpa())
+    force_n = float(consist.service_brake_force_n().sum()) * bc_kpa / air.full_service_bc_kpa()
+    return force_n / float(consist.effective_masses_kg().sum())
+
+
+class ConsistDrive:
+    """A consist following the onboard's plan, stepped by the drive's event loop."""
+
+    def __init__(
+        self,
+        consist: Consist,
+        vehicle_line: Line,
+        profile: PlannedProfile,
+        stop_m: float,
+        dt_s: float,
+        duration_s: float,
+        record_every_s: float = 1.0,
+    ) -> None:
+        air = FreightAirBrake(charged_kpa=consist.brake_pipe_kpa)
+        driver = ConsistDriver(
+            commands=(DriverCommand(at_s=0.0, follow=True),),
+            stop_decel_mps2=stop_decel_mps2(consist, air, STOP_REDUCTION_KPA),
+            stop_reduction_kpa=STOP_REDUCTION_KPA,
+            profile_m=tuple(profile.x_m.tolist()),
+            profile_mps=tuple(profile.v_mps.tolist()),
+            stop_m=stop_m,
+        )
+        self.stop_m = stop_m
+        scenario = ConsistScenario(
+            "drive",
+            consist,
+            vehicle_line,
+            driver,
+            air,
+            sim=ConsistRunSettings(dt_s=dt_s, duration_s=duration_s, record_every_s=record_every_s),
+        )
+        self.stepper = ConsistStepper(scenario)
+
+    @property
+    def time_s(self) -> float:
+        return self.stepper.time_s
+
+    @property
+    def position_m(self) -> float:
+        return self.stepper.position_m
+
+    @property
+    def speed_mps(self) -> float:
+        return self.stepper.speed_mps
+
+    @property
+    def at_rest(self) -> bool:
+        return bool(self.stepper.metrics[C_ENDED] > 0.5)
+
+    def advance_to(self, time_s: float) -> None:
+        self.stepper.advance_to(time_s)
+
+    def run_to_end(self) -> None:
+        self.stepper.run_to_end()
+
+    def follow(self, profile: PlannedProfile, stop_m: float) -> None:
+        """A new plan from here: follow ``profile`` to a stop at ``stop_m`` [m]."""
+        self.stop_m = stop_m
+        self.stepper.replace_profile(profile.x_m, profile.v_mps, stop_m)
+
+    def restart(self) -> None:
+        """Go on from a stand (a target point cleared): release and follow the plan."""
+        self.stepper.metrics[C_REDUCTION] = 0.0
+        self.stepper.metrics[C_STOPPING] = 0.0
+        self.stepper.metrics[C_ENDED] = 0.0
+
+    def result(self) -> SimResult:
+        """The run as the drive's summary reads it: the head's series, the point-mass
+        run's metric names, and the consist's own (:data:`CONSIST_METRICS`)."""
+        run = self.stepper.result()
+        m = run.metrics
+        ended = self.stepper.metrics[C_ENDED] > 0.5
+        metrics: dict[str, float] = {
+            "running_time_s": _number(m["running_time_s"]) if ended else math.nan,
+            "stop_error_m": _number(m["final_position_m"]) - self.stop_m if ended else math.nan,
+            **{key: _number(m[key]) for key in ENERGY_METRICS + CONSIST_METRICS},
+        }
+        series = {
+            "time_s": run.series["time_s"],
+            "position_m": run.series["position_m"],
+            "speed_mps": run.series["speed_mps"],
+            "traction_n": run.series["traction_n"],
+            "electric_n": run.series["regeneration_n"] - run.series["traction_n"],
+            "air_n": run.series["air_brake_n"],
+        }
+        return SimResult(series, metrics, {"model": "consist", "consist": run.meta["consist"]})
