@@ -18,6 +18,7 @@ REPRODUCTIONS: dict[str, str] = {
     "eddy-torque": "railpilot.reproduce.eddy_torque",
     "link-demo": "railpilot.reproduce.link_demo",
     "precise-stop": "railpilot.reproduce.precise_stop",
+    "heavy-haul-ltd": "railpilot.reproduce.heavy_haul_ltd",
     "retiming": "railpilot.reproduce.retiming",
     "line-day": "railpilot.reproduce.line_day",
     "line-live": "railpilot.reproduce.line_live",

@@ -39,10 +39,14 @@ from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 from railpilot.jit import njit
 from railpilot.sim import ltd
-from railpilot.units import KMH_PER_MPS, kmh_to_mps
+from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps
 from railpilot.vehicle.consist import Consist
 from railpilot.vehicle.line import Line
-from railpilot.vehicle.profile import ResistanceTable, elevation_table
+from railpilot.vehicle.profile import (
+    ResistanceTable,
+    elevation_table,
+    mean_specific_resistance,
+)
 from railpilot.vehicle.traction import regen_force_max, traction_force_max
 
 #: the default limit of coupler force [N]: Chinese heavy-haul practice (docs/consist-run.md)
@@ -51,6 +55,12 @@ DEFAULT_COUPLER_LIMIT_N = 2_250e3
 RECHARGED_WITHIN_KPA = 10.0
 #: the electric drive's lag [s], as brakes/locomotive_drive.py's default (assumed there)
 ELECTRIC_LAG_S = 1.0
+#: no braking cycle within this many times the distance the stop's application needs
+APPROACH_FACTOR = 1.5
+#: the time over which the driver reads the train's acceleration [s]
+ACCEL_SMOOTHING_S = 2.0
+#: the least net deceleration [m/s^2] the stop is planned with (a steep descent)
+MIN_STOP_DECEL = 0.02
 #: the least speed the driver aims at on a profile before its stop [m/s]
 MIN_GOAL_MPS = 1.0
 #: most brake releases a run keeps the air state of (for the recharge margins)
@@ -89,8 +99,9 @@ MODE_KEEP, MODE_EFFORT, MODE_HOLD, MODE_PROFILE = range(4)
     DP_STOP_DECEL_MPS2,
     DP_STOP_LEAD_S,
     DP_RELEASE_WAIT_S,
-) = range(16)
-N_DRIVER = 16
+    DP_LENGTH_M,
+) = range(17)
+N_DRIVER = 17
 
 # the run's metrics, then the loop-carried scalars (a run can stop at a step and go on)
 (
@@ -127,8 +138,9 @@ N_DRIVER = 16
     C_HAS_MOVED,
     C_ENDED,
     C_RELEASED_AT,
-) = range(33)
-N_METRICS = 33
+    C_ACCEL,
+) = range(34)
+N_METRICS = 34
 
 
 @dataclass(frozen=True)
@@ -230,9 +242,9 @@ class ConsistDriver:
     commands: tuple[DriverCommand, ...] = ()
     profile_m: tuple[float, ...] = ()
     profile_mps: tuple[float, ...] = ()
-    kp: float = 0.5
-    ki: float = 0.01
-    apply_above_kmh: float = 3.0
+    kp: float = 1.0
+    ki: float = 0.002
+    apply_above_kmh: float = 1.0
     release_below_kmh: float = 5.0
     min_release_kmh: float = 30.0
     cycle_reduction_kpa: float = 50.0
@@ -240,7 +252,7 @@ class ConsistDriver:
     stop_reduction_kpa: float = 70.0
     stop_decel_mps2: float = 0.2
     stop_lead_s: float = 18.0
-    release_wait_s: float = 60.0
+    release_wait_s: float = 150.0
     end_at_rest: bool = True
 
     def __post_init__(self) -> None:
@@ -468,7 +480,9 @@ def consist_kernel(
     n_rec = int(metrics[C_N_REC])
     has_moved = metrics[C_HAS_MOVED] > 0.5
     released_at = metrics[C_RELEASED_AT]
+    accel = metrics[C_ACCEL]
     n_rec_max = rec_scalar.shape[0]
+    length_m = drv[DP_LENGTH_M]
     k = int(metrics[M_STEPS])
     # a brake charged and released, with every valve at the charged pressure, stays so:
     # its step is skipped (on a long run most of the time)
@@ -520,7 +534,12 @@ def consist_kernel(
                 # to stop from this speed (its build-up, then the deceleration the stop's
                 # reduction gives); regeneration then trims to the stop curve
                 to_go = drv[DP_STOP_M] - head_m
-                decel = drv[DP_STOP_DECEL_MPS2]
+                # the stop's air brake, with the line's gradients and curves under the
+                # train helping or against it (a descent lengthens the stop)
+                w_line = mean_specific_resistance(
+                    dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
+                )
+                decel = max(drv[DP_STOP_DECEL_MPS2] + w_line * G_MPS2 / 1000.0, MIN_STOP_DECEL)
                 needed = v_lead * drv[DP_STOP_LEAD_S] + v_lead * v_lead / (2.0 * decel)
                 if to_go <= needed:
                     stopping = True
@@ -532,13 +551,20 @@ def consist_kernel(
                     # braking cycles: apply when regeneration at its limit cannot hold
                     # the profile; release in full when well under it, above the least
                     # speed a release is allowed at; one application at a time; none on
-                    # the approach to the stop (the stop's own application comes there)
+                    # the approach to the stop, within what regeneration alone needs to
+                    # stop (the stop's own application comes there)
+                    # where the train will be once the air has built up, at its
+                    # present acceleration
+                    ahead = v_lead + max(accel, 0.0) * drv[DP_STOP_LEAD_S]
                     if (
                         effort <= -1.0
-                        and v_lead > goal + drv[DP_APPLY_ABOVE_MPS]
-                        and to_go > 2.0 * needed
+                        and ahead > goal + drv[DP_APPLY_ABOVE_MPS]
+                        and to_go > APPROACH_FACTOR * needed
                     ):
                         reduction = drv[DP_CYCLE_REDUCTION_KPA]
+                elif v_lead <= 0.0 and has_moved:
+                    # at a stand short of the stop: release, and go on once released
+                    reduction = 0.0
                 elif v_lead < goal - drv[DP_RELEASE_BELOW_MPS] and v_lead > drv[DP_MIN_RELEASE_MPS]:
                     reduction = 0.0
                 if reduction > 0.0 or t < released_at + drv[DP_RELEASE_WAIT_S]:
@@ -619,6 +645,8 @@ def consist_kernel(
                 inp.brake_force_n[i] * bc[i] / inp.full_service_bc_kpa
             )
         ltd.ltd_step(dyn, dyn_state, drive_n, brake_n, dt)
+        # the lead's acceleration, smoothed over ACCEL_SMOOTHING_S (what a driver reads)
+        accel += ((speeds[0] - v_lead) / dt - accel) * min(dt / ACCEL_SMOOTHING_S, 1.0)
         # --- metrics: the forces' work over the step at each mass's speed
         trac = 0.0
         regen = 0.0
@@ -698,6 +726,7 @@ def consist_kernel(
     metrics[C_N_REC] = n_rec
     metrics[C_HAS_MOVED] = 1.0 if has_moved else 0.0
     metrics[C_RELEASED_AT] = released_at
+    metrics[C_ACCEL] = accel
 
 
 def _locomotive_rows(consist: Consist) -> np.ndarray:
@@ -804,6 +833,7 @@ class ConsistStepper:
         drv[DP_STOP_DECEL_MPS2] = driver.stop_decel_mps2
         drv[DP_STOP_LEAD_S] = driver.stop_lead_s
         drv[DP_RELEASE_WAIT_S] = driver.release_wait_s
+        drv[DP_LENGTH_M] = consist.length_m
         commands = (
             np.array([c.row() for c in driver.commands])
             if driver.commands
