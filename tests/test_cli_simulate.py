@@ -127,3 +127,72 @@ def test_eddy_series_are_still_thinned_for_storage(short_eddy_case2):
     assert len(thinned.time_s) == 12_001 and len(full.time_s) == 120_001
     assert thinned.metadata["record_every"] == 10
     assert m10 == m1
+
+
+# --- train-dynamics scenarios (a consist driven by a script) ------------------------------
+
+SHORT_DYNAMICS = """
+name = "short"
+kind = "train-dynamics"
+consist = "{consist}"
+[sim]
+start_kmh = 40.0
+duration_s = 60.0
+[[driver.commands]]
+at_s = 0.0
+effort = 0.0
+[[driver.commands]]
+at_s = 2.0
+reduction_kpa = 60.0
+"""
+
+BAD_WAGON = """
+name = "bad"
+[[train]]
+type = "HXD1"
+count = 1
+[[train]]
+type = "C80"
+count = 10
+load = "loaded"
+mass_t = {mass}
+"""
+
+
+def test_a_train_dynamics_run_prints_its_coupler_forces_and_writes_its_figures(capsys, tmp_path):
+    path = tmp_path / "short.toml"
+    path.write_text(SHORT_DYNAMICS.format(consist="heavy-haul-10kt"))
+    out = tmp_path / "out"
+    payload = simulate_json(capsys, str(path), "--out", str(out))
+    metrics = payload["metrics"]
+    for key in (
+        "max_coupler_tension_kn",
+        "max_coupler_compression_kn",
+        "coupler_force_limit_exceeded_s",
+        "air_brake_applications",
+        "air_brake_releases",
+        "min_recharge_margin_s",
+    ):
+        assert key in metrics
+    assert metrics["air_brake_applications"] == 1
+    assert metrics["max_coupler_compression_kn"] > 0.0
+    names = sorted(p.name for p in out.iterdir())
+    assert names == sorted(Path(f).name for f in payload["files"])
+    assert "short_coupler_forces.png" in names and "short_brake_pipe.png" in names
+
+
+@pytest.mark.parametrize("mass", ["-5.0", "0", '"heavy"', "1e9"])
+def test_a_bad_consist_file_exits_2_naming_the_vehicle_and_field_and_writes_nothing(
+    capsys, tmp_path, mass
+):
+    consist = tmp_path / "bad_train.toml"
+    consist.write_text(BAD_WAGON.format(mass=mass))
+    path = tmp_path / "run.toml"
+    path.write_text(SHORT_DYNAMICS.format(consist="bad_train.toml"))
+    out = tmp_path / "out"
+    assert main(["simulate", str(path), "--out", str(out), "--json"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    assert "train[1]" in captured.err and "C80" in captured.err and "mass_t" in captured.err
+    assert "Traceback" not in captured.err
+    assert not out.exists()
