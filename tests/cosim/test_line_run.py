@@ -340,3 +340,21 @@ def test_a_radio_outage_is_timed_from_the_start_of_the_run():
     assert link["connects"] == 2 + 2 + 1  # the first two again after it, 103 at 1080 s
     kpis = result.kpis()
     assert kpis["tsr_violations"] == kpis["target_points_passed"] == 0
+
+
+def test_a_line_run_can_run_its_trains_on_the_consist_model():
+    """``[trains] model = "consist"``: every train of the day is its consist (couplers, the
+    freight air brake along it), driven on the same plans; the safety KPIs hold."""
+    day = scenario_from_mapping(BASE | {"trains": {"model": "consist"}})
+    run = run_line(day)
+    kpis = run.kpis()
+    assert kpis["train_model"] == "consist"
+    assert kpis["tsr_violations"] == 0
+    assert kpis["target_points_passed"] == 0
+    assert all(t["finished"] for t in kpis["trains"].values())
+
+
+@pytest.mark.parametrize("model", ["consists", 1, ""])
+def test_an_unknown_train_model_is_refused_by_name(model):
+    with pytest.raises(ConfigError, match="trains.model"):
+        scenario_from_mapping(BASE | {"trains": {"model": model}})

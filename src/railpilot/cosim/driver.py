@@ -59,7 +59,9 @@ from railpilot.link.events import (
 )
 from railpilot.link.messages import PlannedCurve as CurveReport
 from railpilot.link.messages import RunningTimes, TargetPoint, TargetReason, TravelDirection
+from railpilot.onboard.consist_drive import ConsistDrive
 from railpilot.onboard.drive import (
+    CONSIST_MAX_DT_S,
     DEFAULT_MARGIN_KMH,
     StationRoute,
     TrainPreset,
@@ -185,7 +187,7 @@ class _Running:
     """The section being driven: its route, the simulation core and the plan's time."""
 
     route: StationRoute
-    stepper: Stepper
+    stepper: Stepper | ConsistDrive
     t0: float  # the stepper's time 0 [s since the start of the run]
     running_time_s: float
     mrsp: Mrsp
@@ -208,6 +210,8 @@ class TrainDriver:
     advised: bool = True
     margin_kmh: float = DEFAULT_MARGIN_KMH
     dt_s: float = DEFAULT_DT_S
+    #: what follows the plan: the point mass with the precise-stop ATO, or the consist
+    model: str = "point-mass"
     sections: list[SectionRun] = field(default_factory=list)
     #: red-signal stops (cab signal or target point), failure stands excluded
     red_signal_stops: int = 0
@@ -350,19 +354,33 @@ class TrainDriver:
         if not np.any(sec.ceiling_mps > 0.0):
             return False
         curve = self._curve(route, end_s, sec, planned, 0.0)
-        scenario = drive_scenario(
-            self.preset,
-            route.vehicle_line,
-            curve,
-            self.dt_s,
-            duration_s=3.0 * planned + 3_600.0,
-            record_every=round(RECORD_EVERY_S / self.dt_s),
-        )
-        controller = _controller(
-            self.line, self.service.kind, from_id, to_id, self.margin_kmh, self.dt_s
-        )
-        stepper = Stepper(scenario, controller)
-        retarget(stepper.controller_params, stepper.controller_state, end_s)
+        duration_s = 3.0 * planned + 3_600.0
+        stepper: Stepper | ConsistDrive
+        if self.model == "consist":
+            assert self.preset.consist is not None
+            stepper = ConsistDrive(
+                self.preset.consist,
+                route.vehicle_line,
+                PlannedProfile(curve.s_m, curve.speed_mps),
+                end_s,
+                min(self.dt_s, CONSIST_MAX_DT_S),
+                duration_s,
+                record_every_s=RECORD_EVERY_S,
+            )
+        else:
+            scenario = drive_scenario(
+                self.preset,
+                route.vehicle_line,
+                curve,
+                self.dt_s,
+                duration_s=duration_s,
+                record_every=round(RECORD_EVERY_S / self.dt_s),
+            )
+            controller = _controller(
+                self.line, self.service.kind, from_id, to_id, self.margin_kmh, self.dt_s
+            )
+            stepper = Stepper(scenario, controller)
+            retarget(stepper.controller_params, stepper.controller_state, end_s)
         self._running = _Running(route, stepper, t, planned, mrsp, record, plan=(curve, 0.0, end_s))
         return True
 
@@ -584,8 +602,11 @@ class TrainDriver:
             )
             profile = PlannedProfile(s_stand, v_stand)
             running.plan = None
-        stepper.replace_reference(profile)
-        retarget(stepper.controller_params, stepper.controller_state, end_s)
+        if isinstance(stepper, ConsistDrive):
+            stepper.follow(profile, end_s)
+        else:
+            stepper.replace_reference(profile)
+            retarget(stepper.controller_params, stepper.controller_state, end_s)
         running.record.replans += 1
         if running.stopped:
             stepper.restart()

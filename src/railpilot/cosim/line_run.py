@@ -242,6 +242,7 @@ class LineResult:
             "scenario": self.scenario.name,
             "seed": self.seed,
             "driver": "advised" if self.advised else "baseline",
+            "train_model": self.scenario.train_model,
             "sim_s": self.sim_s,
             "trains": trains,
             "conformity_pct": {
@@ -351,6 +352,7 @@ def line_train(
         power_on,
         advised=advised,
         margin_kmh=scenario.margin_kmh,
+        model=scenario.train_model,
     )
     config = OnboardConfig(
         train_id=service.train_id,

@@ -87,7 +87,10 @@ TOP_KEYS = (
     "retiming",
     "services",
     "events",
+    "trains",
 )
+#: the trains' model in a line run: the point mass (fast), or every vehicle of its consist
+TRAIN_MODELS = ("point-mass", "consist")
 RETIMING_KEYS = (
     "enabled",
     "headway_min",
@@ -154,6 +157,8 @@ class LineScenario:
     events: tuple[ScenarioEvent, ...] = field(default_factory=tuple)
     #: how the ground re-times trains off plan (None: it does not; the fixed plan)
     retiming: RetimerSettings | None = field(default_factory=RetimerSettings)
+    #: what follows each train's plan: ``point-mass`` or ``consist`` (docs/consist-run.md)
+    train_model: str = "point-mass"
 
     def with_(self, **changes: Any) -> LineScenario:
         """A copy with some fields changed (a sweep's seed, a test's channel)."""
@@ -341,12 +346,19 @@ def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
         raise ScenarioError("channel", channel_table, "a [channel] table")
     channel = ChannelModel.from_mapping(channel_table)
     retiming = _retiming(data.get("retiming", {}))
+    trains = data.get("trains", {})
+    if not isinstance(trains, Mapping):
+        raise ScenarioError("trains", trains, "a [trains] table")
+    _check_keys(trains, "trains", ("model",))
+    model = trains.get("model", "point-mass")
+    if model not in TRAIN_MODELS:
+        raise ScenarioError("trains.model", model, f"one of {', '.join(TRAIN_MODELS)}")
     services = _services(data.get("services"), line, margin)
     events = _events(
         data.get("events", []), line, epoch_s, duration_s, {s.train_id for s in services}
     )
     return LineScenario(
-        name, line, services, channel, seed, duration_s, epoch_s, margin, events, retiming
+        name, line, services, channel, seed, duration_s, epoch_s, margin, events, retiming, model
     )
 
 

@@ -14,11 +14,15 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.sim.consist_run import (
     C_ENDED,
     C_REDUCTION,
     C_STOPPING,
+    M_STEPS,
+    M_STOP_T,
     ConsistDriver,
     ConsistRunSettings,
     ConsistScenario,
@@ -107,12 +111,27 @@ class ConsistDrive:
         return self.stepper.time_s
 
     @property
+    def step(self) -> int:
+        return int(self.stepper.metrics[M_STEPS])
+
+    @property
+    def n_steps(self) -> int:
+        return self.stepper.n_steps
+
+    @property
+    def stop_time_s(self) -> float:
+        """When the train came to its stand [s] (nan while it has not)."""
+        return float(self.stepper.metrics[M_STOP_T])
+
+    @property
     def position_m(self) -> float:
         return self.stepper.position_m
 
     @property
     def speed_mps(self) -> float:
-        return self.stepper.speed_mps
+        """The lead's speed [m/s]; a few mm/s backwards as the couplers settle at a stand
+        read as 0 (the planner plans forwards)."""
+        return max(self.stepper.speed_mps, 0.0)
 
     @property
     def at_rest(self) -> bool:
@@ -128,6 +147,13 @@ class ConsistDrive:
         """A new plan from here: follow ``profile`` to a stop at ``stop_m`` [m]."""
         self.stop_m = stop_m
         self.stepper.replace_profile(profile.x_m, profile.v_mps, stop_m)
+
+    def hold(self) -> None:
+        """Stand where it is (nothing ahead may be entered): the stop's application here."""
+        here = self.position_m
+        self.stop_m = here
+        self.stepper.replace_profile(np.array([here - 1.0, here]), np.zeros(2), here)
+        self.stepper.metrics[C_STOPPING] = 1.0
 
     def restart(self) -> None:
         """Go on from a stand (a target point cleared): release and follow the plan."""

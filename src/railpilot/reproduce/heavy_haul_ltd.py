@@ -121,19 +121,20 @@ def run(out_dir: Path) -> Reproduction:
         "emergency at the end included, from the speed it had there); the rest from the "
         "level at 60 km/h (service, 100 kPa) or 80 km/h (emergency).",
     )
-    service = results["service_10kt"].metrics
+    cycles = results["service_10kt"].metrics
     ten_em = results["emergency_10kt"].metrics
-    dp, no_dp = results["service_20kt_dp"].metrics, results["service_20kt_no_dp"].metrics
+    with_dp = results["service_20kt_dp"].metrics
+    no_dp = results["service_20kt_no_dp"].metrics
     em_dp, em_no = results["emergency_20kt_dp"].metrics, results["emergency_20kt_no_dp"].metrics
     findings = [
         f"The 10,000 t train's service braking cycles stay under the {LIMIT_KN:,.0f} kN "
-        f"limit: {service['max_coupler_compression_kn']:.0f} kN compression, "
-        f"{service['max_coupler_tension_kn']:.0f} kN tension.",
+        f"limit: {cycles['max_coupler_compression_kn']:.0f} kN compression, "
+        f"{cycles['max_coupler_tension_kn']:.0f} kN tension.",
         f"The 10,000 t train stops from 80 km/h in emergency in "
         f"{ten_em['emergency_stopping_distance_m']:.0f} m.",
         "Distributed power lowers the 20,000 t train's largest compression in a 100 kPa "
         f"service application from {no_dp['max_coupler_compression_kn']:.0f} kN to "
-        f"{dp['max_coupler_compression_kn']:.0f} kN, and in emergency from "
+        f"{with_dp['max_coupler_compression_kn']:.0f} kN, and in emergency from "
         f"{em_no['max_coupler_compression_kn']:.0f} kN to "
         f"{em_dp['max_coupler_compression_kn']:.0f} kN.",
     ]

@@ -55,6 +55,8 @@ DEFAULT_COUPLER_LIMIT_N = 2_250e3
 RECHARGED_WITHIN_KPA = 10.0
 #: the electric drive's lag [s], as brakes/locomotive_drive.py's default (assumed there)
 ELECTRIC_LAG_S = 1.0
+#: where the driver reads the plan ahead of the head [m]
+LOOK_AHEAD_M = np.array([250.0, 500.0, 1_000.0, 2_000.0, 4_000.0])
 #: no braking cycle within this many times the distance the stop's application needs
 APPROACH_FACTOR = 1.5
 #: the time over which the driver reads the train's acceleration [s]
@@ -100,8 +102,11 @@ MODE_KEEP, MODE_EFFORT, MODE_HOLD, MODE_PROFILE = range(4)
     DP_STOP_LEAD_S,
     DP_RELEASE_WAIT_S,
     DP_LENGTH_M,
-) = range(17)
-N_DRIVER = 17
+    DP_EFFECTIVE_MASS_KG,
+    DP_KPA_PER_MPS2,
+    DP_FULL_REDUCTION_KPA,
+) = range(20)
+N_DRIVER = 20
 
 # the run's metrics, then the loop-carried scalars (a run can stop at a step and go on)
 (
@@ -547,26 +552,63 @@ def consist_kernel(
                     reduction = max(reduction, drv[DP_STOP_REDUCTION_KPA])
                     curve = math.sqrt(2.0 * decel * max(to_go, 0.0))
                     effort = min(drv[DP_KP] * (curve - v_lead), 0.0)
-                elif reduction == 0.0:
-                    # braking cycles: apply when regeneration at its limit cannot hold
-                    # the profile; release in full when well under it, above the least
-                    # speed a release is allowed at; one application at a time; none on
-                    # the approach to the stop, within what regeneration alone needs to
-                    # stop (the stop's own application comes there)
-                    # where the train will be once the air has built up, at its
-                    # present acceleration
-                    ahead = v_lead + max(accel, 0.0) * drv[DP_STOP_LEAD_S]
-                    if (
-                        effort <= -1.0
-                        and ahead > goal + drv[DP_APPLY_ABOVE_MPS]
-                        and to_go > APPROACH_FACTOR * needed
+                else:
+                    # the air the plan ahead asks for: the deepest deceleration to any
+                    # of its speeds ahead (the air's build-up run first), less what the
+                    # line and full regeneration give, as a reduction (linear in the
+                    # deceleration up to full service); deepened, never eased (a
+                    # direct-release brake releases only in full)
+                    lead = drv[DP_STOP_LEAD_S]
+                    kinematic = 0.0
+                    approach_m = drv[DP_STOP_M] - APPROACH_FACTOR * needed
+                    for look in LOOK_AHEAD_M:
+                        ahead_m = look - v_lead * lead
+                        # the plan's own stop is the stop's application's to brake for
+                        if ahead_m > 1.0 and head_m + look < approach_m:
+                            g_ahead = _profile_speed(head_m + look, inp.profile_m, inp.profile_mps)
+                            if v_lead > g_ahead:
+                                kinematic = max(
+                                    kinematic, (v_lead**2 - g_ahead**2) / (2.0 * ahead_m)
+                                )
+                    regen_mps2 = 0.0
+                    for j in range(n_loco):
+                        loco = inp.loco[j]
+                        regen_mps2 += regen_force_max(v_lead, loco[4], loco[5], loco[6])
+                    regen_mps2 /= drv[DP_EFFECTIVE_MASS_KG]
+                    line_mps2 = w_line * G_MPS2 / 1000.0
+                    if kinematic > 0.0 and regen_mps2 > 0.0:
+                        # regeneration first: as much of the deceleration as it gives
+                        share = min(max(kinematic - line_mps2, 0.0) / regen_mps2, 1.0)
+                        effort = min(effort, -share)
+                    air_mps2 = kinematic - line_mps2 - regen_mps2
+                    wanted = 0.0
+                    # worth an application: at least half what the least one gives
+                    least = 0.5 * drv[DP_CYCLE_REDUCTION_KPA] / drv[DP_KPA_PER_MPS2]
+                    if kinematic > 0.0 and air_mps2 > least:
+                        wanted = min(
+                            max(air_mps2 * drv[DP_KPA_PER_MPS2], drv[DP_CYCLE_REDUCTION_KPA]),
+                            drv[DP_FULL_REDUCTION_KPA],
+                        )
+                    # braking cycles where the plan holds its speed: apply when the train,
+                    # at its present acceleration, will be over it once the air has built
+                    # up with regeneration already at its limit
+                    speeding = v_lead + max(accel, 0.0) * lead
+                    if effort <= -1.0 and speeding > goal + drv[DP_APPLY_ABOVE_MPS]:
+                        wanted = max(wanted, drv[DP_CYCLE_REDUCTION_KPA])
+                    if to_go <= APPROACH_FACTOR * needed:
+                        wanted = 0.0  # the approach: the stop's own application comes
+                    if v_lead <= 0.0 and has_moved:
+                        # at a stand short of the stop: release, go on once released
+                        reduction = 0.0
+                    elif wanted > reduction:
+                        reduction = wanted
+                    elif (
+                        reduction > 0.0
+                        and wanted == 0.0
+                        and v_lead < goal - drv[DP_RELEASE_BELOW_MPS]
+                        and v_lead > drv[DP_MIN_RELEASE_MPS]
                     ):
-                        reduction = drv[DP_CYCLE_REDUCTION_KPA]
-                elif v_lead <= 0.0 and has_moved:
-                    # at a stand short of the stop: release, and go on once released
-                    reduction = 0.0
-                elif v_lead < goal - drv[DP_RELEASE_BELOW_MPS] and v_lead > drv[DP_MIN_RELEASE_MPS]:
-                    reduction = 0.0
+                        reduction = 0.0
                 if reduction > 0.0 or t < released_at + drv[DP_RELEASE_WAIT_S]:
                     # no traction against the air brake, nor while it releases
                     effort = min(effort, 0.0)
@@ -834,6 +876,12 @@ class ConsistStepper:
         drv[DP_STOP_LEAD_S] = driver.stop_lead_s
         drv[DP_RELEASE_WAIT_S] = driver.release_wait_s
         drv[DP_LENGTH_M] = consist.length_m
+        effective_kg = float(consist.effective_masses_kg().sum())
+        drv[DP_EFFECTIVE_MASS_KG] = effective_kg
+        # a full-service reduction gives every brake its full-service force
+        full_mps2 = float(consist.service_brake_force_n().sum()) / effective_kg
+        drv[DP_FULL_REDUCTION_KPA] = air.full_service_reduction_kpa()
+        drv[DP_KPA_PER_MPS2] = air.full_service_reduction_kpa() / full_mps2
         commands = (
             np.array([c.row() for c in driver.commands])
             if driver.commands
