@@ -18,7 +18,12 @@ from numba import njit
 from numpy.testing import assert_allclose
 
 from railpilot.brakes import freight_air as fa
-from railpilot.brakes.brake_pipe import BrakePipeBrake, equivalent_build_up_time_s
+from railpilot.brakes.brake_pipe import (
+    BrakePipeBrake,
+    application_lag_s,
+    equivalent_build_up_time_s,
+    release_lag_s,
+)
 from railpilot.brakes.freight_air import (
     FreightAirBrake,
     arrival_time_s,
@@ -150,9 +155,7 @@ def test_a_minimum_reduction_on_a_train_not_recharged_brakes_weaker_and_holds():
     assert np.all(fa.bc_kpa(params, state) < 0.5)  # released
     before = fa.ar_kpa(params, state).copy()
     assert np.all(before[1:] < P0 - BRAKE.application_sensitivity_kpa)  # not recharged
-    out = simulate(
-        params, state, np.array([P0 - BRAKE.min_reduction_kpa]), np.zeros(1), 300.0, DT
-    )
+    out = simulate(params, state, np.array([P0 - BRAKE.min_reduction_kpa]), np.zeros(1), 300.0, DT)
     bc, ar = out["bc"][:, 1:], out["ar"][:, 1:]
     charged_min = BRAKE.ar_to_bc_ratio * BRAKE.min_reduction_kpa
     settled = bc[-1]
@@ -291,6 +294,133 @@ def test_without_quick_service_the_build_up_matches_the_point_model(length_m):
     assert_allclose(ours, theirs, rtol=0.06)
 
 
+# --- the implicit pipe against a fine explicit solution --------------------------------------
+
+
+@njit(cache=True)
+def _explicit_pipe(x, ell, k, consts, er_apply, t_release, t_end, h, every):
+    """The same pipe, head valve, quick service off, solved explicitly at a step ``h`` far
+    below its stability limit: a full-service application launched at 0, a release at
+    ``t_release``. Each cell is in the application's phase from ``x / c_app`` until
+    ``t_release + x / c_rel``; flow only between cells of one phase; every vehicle braked,
+    direct release (applies when the front reaches it charged or its pipe falls ``s_app``
+    below its AR, releases when the pipe rises ``s_rel`` above it; while applied its AR
+    laps at ``max(min(p, A0 - q), A_eq)`` with lag ``T_a`` and gives its air to the BC;
+    while released the AR charges from the pipe through its choke). Returns the pipe and
+    BC every ``every`` steps."""
+    p0, g, c_app, c_rel, s_app, s_rel, q, rho, a_m, tau_a, tau_r, tau_ch = consts
+    n = x.size
+    p = np.full(n, p0)
+    ar = np.full(n, p0)
+    bc = np.zeros(n)
+    a0 = np.full(n, p0)
+    applied = np.zeros(n, dtype=np.bool_)
+    reached = np.zeros(n, dtype=np.bool_)
+    phase = np.zeros(n, dtype=np.int64)
+    flux = np.zeros(n)
+    steps = round(t_end / h)
+    out_bp = np.empty((steps // every, n))
+    out_bc = np.empty((steps // every, n))
+    for step in range(steps):
+        t = step * h
+        for i in range(n):
+            phase[i] = 1 if x[i] / c_app <= t < t_release + x[i] / c_rel else 0
+            if phase[i] == 1 and not reached[i]:
+                reached[i] = True
+                if not applied[i] and ar[i] + s_app >= p[i]:
+                    applied[i] = True
+                    a0[i] = ar[i]
+            if not applied[i] and ar[i] - p[i] > s_app:
+                applied[i] = True
+                a0[i] = ar[i]
+            elif applied[i] and p[i] > ar[i] + s_rel:
+                applied[i] = False
+        flux[:] = 0.0
+        for i in range(n - 1):
+            if phase[i] == phase[i + 1]:
+                f = k[i] * (p[i] - p[i + 1]) * h
+                flux[i] -= f
+                flux[i + 1] += f
+        er = er_apply if t < t_release else p0
+        flux[0] += g * (er - p[0]) * h
+        for i in range(n):
+            p[i] += flux[i] / ell[i]
+            if applied[i]:
+                a_eq = ar[i] - max(ar[i] - bc[i], 0.0) / (1.0 + rho)
+                target = max(min(p[i], a0[i] - q), a_eq)
+                if ar[i] > target:
+                    given = (ar[i] - target) * h / tau_a
+                    ar[i] -= given
+                    bc[i] += rho * given
+            else:
+                bc[i] -= bc[i] * h / tau_r
+                if p[i] > ar[i]:
+                    moved = a_m * (p[i] - ar[i]) * h / tau_ch
+                    ar[i] += moved / a_m
+                    p[i] -= moved / ell[i]
+        if (step + 1) % every == 0:
+            out_bp[(step + 1) // every - 1] = p
+            out_bc[(step + 1) // every - 1] = bc
+    return out_bp, out_bc
+
+
+def test_the_implicit_pipe_agrees_with_a_fine_explicit_solution():
+    """A full service held 100 s, then a release for 100 s, quick service off, on the
+    1,330 m train (every vehicle braked), at dt = 0.05 s, against the same pipe solved
+    explicitly at 0.2 ms (6 % of its stability limit), sampled every 0.05 s at every
+    vehicle. Stated tolerances: the pipe within 2 kPa everywhere (the largest gaps are
+    near the valve in the first tenths of a second after each command), within 0.5 kPa
+    from 3 s after each command on; every BC within 0.5 kPa; the equivalent build-up time
+    of the application within 0.5 %. (Fixed substeps of 10 ms fail the first: ~5 kPa.)"""
+    brake = FreightAirBrake(
+        min_reduction_kpa=1.0,
+        quick_service_kpa=0.5,
+        application_sensitivity_kpa=0.5,
+        release_sensitivity_kpa=0.5,
+        quick_service_max_s=1e-3,
+    )
+    x = train(110)
+    params, state = packed(x, brake=brake, loco_braked=True)
+    er = P0 - brake.full_service_reduction_kpa()
+    apply = simulate(params, state, np.array([er]), np.zeros(1), 100.0, DT)
+    release = simulate(params, state, np.array([P0]), np.zeros(1), 100.0, DT)
+    t = np.concatenate((apply["t"], release["t"]))
+    bp = np.concatenate((apply["bp"], release["bp"]))
+    bc = np.concatenate((apply["bc"], release["bc"]))
+    # the reference: its own cells (each vehicle's share of the pipe, half-way to its
+    # neighbours), conductances D / dx and reservoir volume
+    gaps = np.diff(x)
+    ell = np.concatenate(([gaps[0]], (gaps[:-1] + gaps[1:]) / 2.0, [gaps[-1]]))
+    k = np.concatenate((brake.pipe_diffusivity_m2ps / gaps, [0.0]))
+    a_m = brake.ar_volume_l * 1e-3 / (np.pi * brake.pipe_bore_m**2 / 4.0)
+    consts = (
+        P0,
+        brake.valve_flow_mps,
+        brake.service_wave_mps,
+        brake.release_wave_mps,
+        brake.application_sensitivity_kpa,
+        brake.release_sensitivity_kpa,
+        brake.quick_service_kpa,
+        brake.ar_to_bc_ratio,
+        a_m,
+        application_lag_s(brake.application_time_s),
+        release_lag_s(brake.release_time_s),
+        brake.charge_lag_s,
+    )
+    h_ref = 2e-4
+    ref_bp, ref_bc = _explicit_pipe(x, ell, k, consts, er, 100.0, 200.0, h_ref, round(DT / h_ref))
+    assert ref_bp.shape == bp.shape
+    assert_allclose(bp, ref_bp, atol=2.0)
+    settled = ((t >= 3.0) & (t < 100.0)) | (t >= 103.0)
+    assert_allclose(bp[settled], ref_bp[settled], atol=0.5)
+    assert_allclose(bc, ref_bc, atol=0.5)
+    # the equivalent build-up time integral (1 - F) dt, F = mean BC / full-service BC
+    full = brake.full_service_bc_kpa()
+    ours = np.sum(1.0 - apply["bc"].mean(axis=1) / full) * DT
+    theirs = np.sum(1.0 - ref_bc[: apply["t"].size].mean(axis=1) / full) * DT
+    assert_allclose(ours, theirs, rtol=5e-3)
+
+
 # --- recharge and step size -----------------------------------------------------------------
 
 
@@ -304,7 +434,11 @@ def test_distributed_power_recharges_a_long_train_much_faster():
 
 def test_two_step_sizes_agree_after_200_s():
     """Full service for 100 s, release for 100 s: the state at dt = 0.05 s and 0.01 s
-    agrees within 1 kPa everywhere (stated tolerance)."""
+    agrees within 1 kPa for every pipe and AR pressure and 5 kPa for every BC (stated
+    tolerances). The BC's is wider: the last few distributors' pipes rise through their
+    release threshold ``A + s_rel`` at about 0.01 kPa/s, so the few hundredths of a kPa by
+    which the two pipes differ move their releases by a second or two, while their BC
+    vents at about 4 kPa/s."""
     x = train(110)
     ends = []
     for dt in (0.05, 0.01):
@@ -312,12 +446,9 @@ def test_two_step_sizes_agree_after_200_s():
         simulate(params, state, np.array([FULL_ER]), np.zeros(1), 100.0, dt)
         simulate(params, state, np.array([P0]), np.zeros(1), 100.0, dt)
         assert_allclose(fa.time_s(state), 200.0, atol=1e-9)
-        ends.append(
-            np.concatenate(
-                [fa.bp_kpa(params, state), fa.ar_kpa(params, state), fa.bc_kpa(params, state)]
-            )
-        )
-    assert_allclose(ends[0], ends[1], atol=1.0)
+        ends.append((fa.bp_kpa(params, state), fa.ar_kpa(params, state), fa.bc_kpa(params, state)))
+    for coarse, fine, atol in zip(ends[0], ends[1], (1.0, 1.0, 5.0), strict=True):
+        assert_allclose(coarse, fine, atol=atol)
 
 
 # --- interface ------------------------------------------------------------------------------

@@ -36,9 +36,24 @@ with ``rho = V_AR / V_BC`` (isothermal mass balance, gauge pressures:
 ``V_AR dA + V_BC dC = 0``) and ``A_eq = A - (A - C) / (1 + rho)`` the equalization.
 Graduated release (UIC type): the BC follows ``rho (p_ref - p)`` both ways.
 
-The kernel :func:`freight_air_step` advances the state by ``dt`` in equal substeps no
-longer than the explicit pipe flow's stability limit (a few ms); the local exchanges
-(valve, reservoirs, venting, cylinders) are advanced exactly over each substep.
+The kernel :func:`freight_air_step` advances the state by ``dt`` in substeps. Each substep
+(1) lets the valves launch fronts, (2) gives each cell a front that has arrived by its
+start, (3) checks the distributors' thresholds, (4) advances the pipe's flow, the valves'
+hold and the reservoirs' charging together by backward Euler (one tridiagonal solve,
+Thomas algorithm; a link between cells of different phases has no coupling), (5)
+advances each vehicle's venting and cylinder exactly (first-order relaxations), and (6)
+starts a release or an application whose threshold the vehicle crossed during the
+substep at the interpolated moment of the crossing. The substep rule:
+
+    h = min(max(h_min, g (t - t_event)), h_max),   split at the next front arrival
+
+with ``t_event`` the latest launch or arrival of a front or start of an application
+(``h_min`` = 1 ms, ``g`` = 0.2, ``h_max`` = 50 ms: MIN_SUBSTEP_S, SUBSTEP_GROWTH,
+MAX_SUBSTEP_S). A front joining a cell to the pipe, a valve's new command or a quick
+service starts a fast exchange (a cell's diffusion time ``l^2 / D`` is ~7 ms for a 12 m
+wagon, the valve's ``l / G`` ~0.1 s): the short substeps resolve it; as it fades the
+substep grows to 50 ms, where backward Euler is stable and accurate to a fraction of a kPa
+(docs/freight-air-brake.md: validation against a fine explicit solution).
 """
 
 from __future__ import annotations
@@ -70,7 +85,7 @@ MODE_RELEASED, MODE_APPLIED, MODE_EMERGENCY = 0, 1, 2
 (
     P_N,  # vehicles
     P_NV,  # driver's brake valves
-    P_H_MAX,  # longest substep [s]
+    P_H_MAX,  # longest substep [s] (MAX_SUBSTEP_S)
     P_REF,  # charged pipe pressure = graduated-release reference [kPa]
     P_RHO,  # V_AR / V_BC
     P_EPS,  # V_ER / V_BC
@@ -91,8 +106,10 @@ MODE_RELEASED, MODE_APPLIED, MODE_EMERGENCY = 0, 1, 2
     P_TAU_E1,  # emergency BC first stage lag [s]
     P_TAU_E2,  # emergency BC second stage lag [s]
     P_E_STAGE,  # BC pressure ending the first emergency stage [kPa]
-) = range(23)
-P_HEAD = 23
+    P_H_MIN,  # shortest substep, at a front's launch or arrival or an application [s]
+    P_H_GROWTH,  # the substep's growth with the time since then [s/s]
+) = range(25)
+P_HEAD = 25
 #: per-vehicle blocks after the header: position [m], pipe length [m], conductance of the
 #: link to the next vehicle [m/s] (0 for the last), 1 if direct release, 1 if braked
 PB_X, PB_ELL, PB_K, PB_DIRECT, PB_BRAKE = range(5)
@@ -129,6 +146,23 @@ MAX_VEHICLES = 2000
 SINGLE_VEHICLE_M = 14.0
 #: a front never launched
 NEVER = -1.0e30
+#: the kernel's substep rule (module docstring): shortest [s], at a front's launch or
+#: arrival or an application's start (the pipe's fast exchange then lasts a few ms); growth
+#: with the time since [s/s]; longest [s] (the consist run's step: one solve per step
+#: while nothing changes fast)
+MIN_SUBSTEP_S = 0.001
+SUBSTEP_GROWTH = 0.2
+MAX_SUBSTEP_S = 0.05
+#: a front reaching a vehicle within this of a substep's start counts as arrived [s]
+ARRIVAL_TOL_S = 1e-9
+#: the local lags whose factors exp(-h / T) a substep uses (scratch of the state)
+AL_APP, AL_REL, AL_QS, AL_EV, AL_E1, AL_E2 = range(6)
+N_ALPHAS = 6
+#: the state's scratch after the valve data (no meaning between calls): per-vehicle blocks
+#: (the pipe solve's upper diagonal, which reservoirs charge, each distributor's margin to
+#: its threshold at the substep's start), then the lags' factors
+(SC_UPPER, SC_CHARGING, SC_MARGIN) = range(3)
+SC_BLOCKS = 3
 
 
 @dataclass(frozen=True)
@@ -459,11 +493,9 @@ def pack_freight_air(
     k = np.zeros(n)
     if n > 1:
         k[:-1] = brake.pipe_diffusivity_m2ps / np.diff(x)
-    # explicit pipe flow: a substep within 40 % of the stability limit l / sum(k)
-    k_sum = k + np.concatenate(([0.0], k[:-1]))
-    h_max = 0.01 if n == 1 else min(0.01, 0.4 * float(np.min(ell / k_sum)))
     p = np.zeros(P_HEAD + P_BLOCKS * n + nv)
-    p[P_N], p[P_NV], p[P_H_MAX] = n, nv, h_max
+    p[P_N], p[P_NV], p[P_H_MAX] = n, nv, MAX_SUBSTEP_S
+    p[P_H_MIN], p[P_H_GROWTH] = MIN_SUBSTEP_S, SUBSTEP_GROWTH
     p[P_REF] = brake.charged_kpa
     p[P_RHO] = brake.ar_to_bc_ratio
     p[P_EPS] = brake.er_to_bc_ratio
@@ -493,7 +525,7 @@ def pack_freight_air(
     ):
         p[P_HEAD + block * n : P_HEAD + (block + 1) * n] = values
     p[P_HEAD + P_BLOCKS * n :] = valves
-    s = np.zeros(ST_HEAD + S_BLOCKS * n + nv * (2 + 2 * N_FRONTS))
+    s = np.zeros(_scratch_start(n, nv) + SC_BLOCKS * n + N_ALPHAS)
     for block in (SB_BP, SB_AR, SB_ER):
         s[ST_HEAD + block * n : ST_HEAD + (block + 1) * n] = brake.charged_kpa
     for block in (SB_TRIG, SB_LAUNCH, SB_ARRIVE):
@@ -563,9 +595,448 @@ def time_s(state: np.ndarray) -> float:
 
 
 @njit(cache=True)
+def _scratch_start(n: int, nv: int) -> int:
+    """Index of the state's scratch (after the per-vehicle blocks and the valve data)."""
+    return ST_HEAD + S_BLOCKS * n + nv * (2 + 2 * N_FRONTS)
+
+
+@njit(cache=True)
 def _relax(value: float, target: float, alpha: float) -> float:
     """A first-order lag held toward ``target`` over a part of a step (``alpha = exp(-h/T)``)."""
     return target + (value - target) * alpha
+
+
+@njit(cache=True)
+def _front_speed_mps(params: np.ndarray, kind: int) -> float:
+    """Propagation speed [m/s] of a front of type ``kind`` (a phase)."""
+    if kind == PH_EMERGENCY:
+        return float(params[P_C_EM])
+    if kind == PH_APPLY:
+        return float(params[P_C_APP])
+    return float(params[P_C_REL])
+
+
+@njit(cache=True)
+def _launch_fronts(
+    params: np.ndarray, state: np.ndarray, er_kpa: np.ndarray, emergency: np.ndarray
+) -> None:
+    """Each valve launches a new front, at the state's time, when its command departs from
+    the pipe at its cell (beyond a sensitivity) or its emergency flag is newly set."""
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    t = state[ST_T]
+    s_app = params[P_S_APP]
+    s_rel = params[P_S_REL]
+    bp = state[ST_HEAD + SB_BP * n : ST_HEAD + (SB_BP + 1) * n]
+    vbase = ST_HEAD + S_BLOCKS * n
+    fl0 = vbase + 2 * nv
+    ft0 = fl0 + nv * N_FRONTS
+    for j in range(nv):
+        v = int(params[P_HEAD + P_BLOCKS * n + j])
+        vm = int(state[vbase + 2 * j + SV_MODE])
+        new_type = -1
+        if emergency[j] > 0.5:
+            if vm != PH_EMERGENCY:
+                new_type = PH_EMERGENCY
+        elif vm == PH_RELEASE:
+            if er_kpa[j] < bp[v] - s_app:
+                new_type = PH_APPLY
+        elif er_kpa[j] > bp[v] + s_rel:
+            new_type = PH_RELEASE
+        if new_type >= 0:
+            count = int(state[vbase + 2 * j + SV_COUNT])
+            slot = count % N_FRONTS
+            state[fl0 + j * N_FRONTS + slot] = t
+            state[ft0 + j * N_FRONTS + slot] = new_type
+            state[vbase + 2 * j + SV_COUNT] = count + 1
+            state[vbase + 2 * j + SV_MODE] = new_type
+
+
+@njit(cache=True)
+def _fronts_travelling(params: np.ndarray, state: np.ndarray) -> bool:
+    """Whether some front may still reach a vehicle, or reached one so recently that the
+    substep is still growing after it: a front that reached the farthest vehicle from its
+    valve longer ago was taken by every cell already (the substeps since were shorter)."""
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    h_max = params[P_H_MAX]
+    t_done = state[ST_T] - 2.0 * h_max - (h_max - params[P_H_MIN]) / params[P_H_GROWTH]
+    x_first = params[P_HEAD + PB_X * n]
+    x_last = params[P_HEAD + PB_X * n + n - 1]
+    fl0 = ST_HEAD + S_BLOCKS * n + 2 * nv
+    ft0 = fl0 + nv * N_FRONTS
+    for j in range(nv):
+        x_valve = params[P_HEAD + PB_X * n + int(params[P_HEAD + P_BLOCKS * n + j])]
+        farthest = max(x_valve - x_first, x_last - x_valve)
+        for f in range(N_FRONTS):
+            t_launch = state[fl0 + j * N_FRONTS + f]
+            kind = int(state[ft0 + j * N_FRONTS + f])
+            if t_launch + farthest / _front_speed_mps(params, kind) > t_done:
+                return True
+    return False
+
+
+@njit(cache=True)
+def _reach_fronts(params: np.ndarray, state: np.ndarray) -> tuple[float, float]:
+    """Each cell takes the type of the newest-launched front that has reached it by the
+    state's time (within ARRIVAL_TOL_S); a braked vehicle reached by a service front while
+    charged starts its application (quick service) at the front's arrival, one reached by
+    an emergency front its emergency. Returns the earliest later arrival [s] that will
+    change a cell (inf if none) and the latest arrival so far [s]."""
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    t_cut = state[ST_T] + ARRIVAL_TOL_S
+    rho = params[P_RHO]
+    eps = params[P_EPS]
+    s_app = params[P_S_APP]
+    x = params[P_HEAD + PB_X * n : P_HEAD + (PB_X + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    valve_at = params[P_HEAD + P_BLOCKS * n : P_HEAD + P_BLOCKS * n + nv]
+    base = ST_HEAD
+    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
+    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
+    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
+    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
+    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
+    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    launch = state[base + SB_LAUNCH * n : base + (SB_LAUNCH + 1) * n]
+    arrive = state[base + SB_ARRIVE * n : base + (SB_ARRIVE + 1) * n]
+    fl0 = base + S_BLOCKS * n + 2 * nv
+    ft0 = fl0 + nv * N_FRONTS
+    next_arrival = math.inf
+    latest = NEVER
+    for i in range(n):
+        best_launch = launch[i]
+        best_type = -1
+        best_arrive = 0.0
+        for j in range(nv):
+            distance = abs(x[i] - x[int(valve_at[j])])
+            for f in range(N_FRONTS):
+                t_launch = state[fl0 + j * N_FRONTS + f]
+                if t_launch <= best_launch:
+                    continue
+                kind = int(state[ft0 + j * N_FRONTS + f])
+                t_arrive = t_launch + distance / _front_speed_mps(params, kind)
+                if t_arrive <= t_cut:
+                    best_launch = t_launch
+                    best_type = kind
+                    best_arrive = t_arrive
+        if best_type >= 0:
+            phase[i] = best_type
+            launch[i] = best_launch
+            arrive[i] = best_arrive
+            if braked[i] > 0.5:
+                if best_type == PH_EMERGENCY:
+                    if mode[i] != MODE_EMERGENCY:
+                        # AR and ER join to feed the BC
+                        if eps > 0.0:
+                            merged = (rho * ar[i] + eps * er[i]) / (rho + eps)
+                            ar[i] = merged
+                            er[i] = merged
+                        mode[i] = MODE_EMERGENCY
+                        trig[i] = best_arrive
+                elif best_type == PH_APPLY and mode[i] == MODE_RELEASED and ar[i] + s_app >= bp[i]:
+                    # quick service carried along by the front
+                    mode[i] = MODE_APPLIED
+                    a0[i] = ar[i]
+                    trig[i] = best_arrive
+        latest = max(latest, arrive[i])
+        # the next front still to reach this cell, newer than the one it has
+        for j in range(nv):
+            distance = abs(x[i] - x[int(valve_at[j])])
+            for f in range(N_FRONTS):
+                t_launch = state[fl0 + j * N_FRONTS + f]
+                if t_launch <= launch[i]:
+                    continue
+                kind = int(state[ft0 + j * N_FRONTS + f])
+                t_arrive = t_launch + distance / _front_speed_mps(params, kind)
+                if t_cut < t_arrive < next_arrival:
+                    next_arrival = t_arrive
+    return next_arrival, latest
+
+
+@njit(cache=True)
+def _distributor_thresholds(params: np.ndarray, state: np.ndarray) -> float:
+    """Each distributor's own thresholds at the state's time: apply when the pipe is
+    ``s_app`` below its AR, release when ``s_rel`` above (graduated release: near the
+    charged pressure). Keeps each direct-release distributor's margin to the threshold it
+    may cross next (released: ``A - p - s_app``; applied: ``p - A - s_rel``) for
+    :func:`_crossings`. Returns the latest start of an application [s] (its quick service
+    vents the pipe from then on)."""
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    t = state[ST_T]
+    ref = params[P_REF]
+    s_app = params[P_S_APP]
+    s_rel = params[P_S_REL]
+    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    base = ST_HEAD
+    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
+    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
+    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
+    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
+    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    scratch0 = _scratch_start(n, nv)
+    margin = state[scratch0 + SC_MARGIN * n : scratch0 + (SC_MARGIN + 1) * n]
+    latest = NEVER
+    for i in range(n):
+        if braked[i] < 0.5:
+            continue
+        if mode[i] == MODE_RELEASED:
+            if ar[i] - bp[i] > s_app:
+                mode[i] = MODE_APPLIED
+                a0[i] = ar[i]
+                trig[i] = t
+        elif mode[i] == MODE_APPLIED:
+            if direct[i] > 0.5:
+                if bp[i] > ar[i] + s_rel:
+                    mode[i] = MODE_RELEASED
+            elif bp[i] > ref - s_app:
+                mode[i] = MODE_RELEASED
+        elif phase[i] != PH_EMERGENCY and bp[i] > ar[i] + s_rel:
+            mode[i] = MODE_RELEASED
+        if mode[i] == MODE_RELEASED:
+            margin[i] = ar[i] - bp[i] - s_app
+        elif mode[i] == MODE_APPLIED:
+            margin[i] = bp[i] - ar[i] - s_rel
+            latest = max(latest, trig[i])
+    return latest
+
+
+@njit(cache=True)
+def _crossings(params: np.ndarray, state: np.ndarray, h: float) -> None:
+    """The thresholds a direct-release distributor crossed during the substep of ``h``
+    [s] that ends at the state's time, at the moment of the crossing (the margin
+    interpolated linearly over the substep): a release vents the BC for the rest of the
+    substep; an application starts there (its quick service vents the pipe for the rest
+    of the substep)."""
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    t_end = state[ST_T]
+    s_app = params[P_S_APP]
+    s_rel = params[P_S_REL]
+    q_depth = params[P_QS_DEPTH]
+    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    base = ST_HEAD
+    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
+    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
+    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
+    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
+    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
+    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    scratch0 = _scratch_start(n, nv)
+    margin = state[scratch0 + SC_MARGIN * n : scratch0 + (SC_MARGIN + 1) * n]
+    for i in range(n):
+        if braked[i] < 0.5 or direct[i] < 0.5:
+            continue
+        if mode[i] == MODE_RELEASED:
+            after = ar[i] - bp[i] - s_app
+            if after > 0.0:
+                late = h * after / (after - min(margin[i], 0.0))
+                mode[i] = MODE_APPLIED
+                a0[i] = ar[i]
+                trig[i] = t_end - late
+                floor = a0[i] - q_depth
+                if bp[i] > floor:
+                    bp[i] = _relax(bp[i], floor, math.exp(-late / params[P_TAU_QS]))
+        elif mode[i] == MODE_APPLIED:
+            after = bp[i] - ar[i] - s_rel
+            if after > 0.0:
+                late = h * after / (after - min(margin[i], 0.0))
+                mode[i] = MODE_RELEASED
+                bc[i] *= math.exp(-late / params[P_TAU_REL])
+
+
+@njit(cache=True)
+def _pipe_flow(params: np.ndarray, state: np.ndarray, er_kpa: np.ndarray, h: float) -> None:
+    """The pipe's flow, the valves' hold and the reservoirs' charging over ``h`` [s],
+    backward Euler, as one linear system.
+
+    For each cell, with ``w_i = h k_i`` between two cells of one phase (else 0)::
+
+        (l_i + w_{i-1} + w_i + h G_i + c_i) p_i' - w_{i-1} p_{i-1}' - w_i p_{i+1}'
+            = l_i p_i + h G_i p_ER + c_i A_i
+
+    ``G_i = G`` at a valve's cell (unless it vents in emergency); a reservoir of ``a``
+    pipe metres charging through its choke (lag ``T``) from a pipe above it adds
+    ``c_i = a b / (1 + b)``, ``b = h / T``, and then ``A_i' = (A_i + b p_i') / (1 + b)``
+    (the ER likewise). Tridiagonal and diagonally dominant: the Thomas algorithm, no
+    pivoting, in place (the pipe block holds the eliminated right-hand side, the state's
+    scratch the eliminated upper diagonal and which reservoirs charge).
+    """
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    g = params[P_G]
+    rho = params[P_RHO]
+    eps = params[P_EPS]
+    a_m = params[P_AR_M]
+    e_m = a_m * eps / rho
+    b = h / params[P_TAU_CH]
+    ell = params[P_HEAD + PB_ELL * n : P_HEAD + (PB_ELL + 1) * n]
+    k = params[P_HEAD + PB_K * n : P_HEAD + (PB_K + 1) * n]
+    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    bp = state[ST_HEAD + SB_BP * n : ST_HEAD + (SB_BP + 1) * n]
+    ar = state[ST_HEAD + SB_AR * n : ST_HEAD + (SB_AR + 1) * n]
+    er = state[ST_HEAD + SB_ER * n : ST_HEAD + (SB_ER + 1) * n]
+    mode = state[ST_HEAD + SB_MODE * n : ST_HEAD + (SB_MODE + 1) * n]
+    phase = state[ST_HEAD + SB_PHASE * n : ST_HEAD + (SB_PHASE + 1) * n]
+    vbase = ST_HEAD + S_BLOCKS * n
+    scratch0 = _scratch_start(n, nv)
+    upper = state[scratch0 + SC_UPPER * n : scratch0 + (SC_UPPER + 1) * n]
+    charging = state[scratch0 + SC_CHARGING * n : scratch0 + (SC_CHARGING + 1) * n]
+    # the extra diagonal (in ``upper`` until the sweep overwrites it), its pressures folded
+    # into the right-hand side as ``bp * l``; 1 = the AR charges, 2 = the ER, 3 = both
+    c_ar = a_m * b / (1.0 + b)
+    c_er = e_m * b / (1.0 + b)
+    for i in range(n):
+        extra = 0.0
+        flags = 0.0
+        if braked[i] > 0.5 and mode[i] != MODE_EMERGENCY:
+            charges_ar = direct[i] < 0.5 or mode[i] == MODE_RELEASED
+            if charges_ar and bp[i] > ar[i]:
+                extra += c_ar
+                bp[i] += c_ar * ar[i] / ell[i]
+                flags += 1.0
+            if eps > 0.0 and bp[i] > er[i]:
+                extra += c_er
+                bp[i] += c_er * er[i] / ell[i]
+                flags += 2.0
+        upper[i] = extra
+        charging[i] = flags
+    for j in range(nv):
+        if int(state[vbase + 2 * j + SV_MODE]) != PH_EMERGENCY:
+            v = int(params[P_HEAD + P_BLOCKS * n + j])
+            upper[v] += h * g
+            bp[v] += h * g * er_kpa[j] / ell[v]
+    # forward sweep: bp becomes the eliminated right-hand side, upper the upper diagonal
+    w_left = 0.0
+    c_left = 0.0
+    d_left = 0.0
+    for i in range(n):
+        w = h * k[i] if i < n - 1 and phase[i] == phase[i + 1] else 0.0
+        denom = ell[i] + upper[i] + w + w_left * (1.0 + c_left)
+        c_left = -w / denom
+        d_left = (ell[i] * bp[i] + w_left * d_left) / denom
+        upper[i] = c_left
+        bp[i] = d_left
+        w_left = w
+    # back substitution, and the reservoirs that charged
+    for i in range(n - 1, -1, -1):
+        if i < n - 1:
+            bp[i] -= upper[i] * bp[i + 1]
+        flags = charging[i]
+        if flags > 0.5:
+            if flags != 2.0:
+                ar[i] = (ar[i] + b * bp[i]) / (1.0 + b)
+            if flags > 1.5:
+                er[i] = (er[i] + b * bp[i]) / (1.0 + b)
+
+
+@njit(cache=True)
+def _local_exchanges(params: np.ndarray, state: np.ndarray, h: float, alphas: np.ndarray) -> None:
+    """Each vehicle's own exchanges over ``h`` [s], each an exact first-order relaxation:
+    emergency venting, the distributor's AR -> BC (and BC exhaust), quick service, the
+    reservoirs charging from the pipe. ``alphas``: ``exp(-h / T)`` of the application,
+    release, quick-service, emergency-vent and the two emergency lags (AL_* order)."""
+    n = int(params[P_N])
+    t = state[ST_T]
+    ref = params[P_REF]
+    rho = params[P_RHO]
+    eps = params[P_EPS]
+    q_depth = params[P_QS_DEPTH]
+    qs_s = params[P_QS_S]
+    tau_qs = params[P_TAU_QS]
+    e_stage = params[P_E_STAGE]
+    al_app = alphas[AL_APP]
+    al_rel = alphas[AL_REL]
+    al_qs = alphas[AL_QS]
+    al_ev = alphas[AL_EV]
+    al_e1 = alphas[AL_E1]
+    al_e2 = alphas[AL_E2]
+    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
+    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    base = ST_HEAD
+    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
+    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
+    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
+    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
+    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
+    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
+    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    for i in range(n):
+        if phase[i] == PH_EMERGENCY:
+            bp[i] = bp[i] * al_ev
+        if braked[i] < 0.5:
+            continue
+        m = mode[i]
+        if m == MODE_EMERGENCY:
+            # the target is the mass balance (it stays put as the AR and ER feed the BC);
+            # the first stage's lag up to C_stage, the second's after, switching within
+            # the substep at the moment the BC passes C_stage
+            target = (rho * ar[i] + eps * er[i] + bc[i]) / (rho + eps + 1.0)
+            if bc[i] < target:
+                if bc[i] >= e_stage:
+                    new_bc = _relax(bc[i], target, al_e2)
+                else:
+                    new_bc = _relax(bc[i], target, al_e1)
+                    if new_bc > e_stage:
+                        t_stage = params[P_TAU_E1] * math.log((target - bc[i]) / (target - e_stage))
+                        new_bc = _relax(e_stage, target, math.exp((t_stage - h) / params[P_TAU_E2]))
+                given = (new_bc - bc[i]) / (rho + eps)
+                bc[i] = new_bc
+                ar[i] -= given
+                if eps > 0.0:
+                    er[i] -= given
+            continue
+        # quick service: vent the local pipe to its depth below the AR's start, for the
+        # part of the substep before its longest duration ends
+        if m == MODE_APPLIED:
+            venting = min(h, trig[i] + qs_s - t)
+            floor = a0[i] - q_depth
+            if venting > 0.0 and bp[i] > floor:
+                alpha = al_qs if venting >= h else math.exp(-venting / tau_qs)
+                bp[i] = _relax(bp[i], floor, alpha)
+        if direct[i] > 0.5:
+            if m == MODE_APPLIED:
+                lap = min(bp[i], a0[i] - q_depth)
+                a_eq = ar[i] - max(ar[i] - bc[i], 0.0) / (1.0 + rho)
+                target = max(lap, a_eq)
+                if ar[i] > target:
+                    new_ar = _relax(ar[i], target, al_app)
+                    bc[i] += rho * (ar[i] - new_ar)
+                    ar[i] = new_ar
+            else:
+                bc[i] = bc[i] * al_rel
+        else:
+            # graduated release: the BC follows rho (p_ref - p), above the threshold
+            demand = ref - bp[i]
+            want = rho * max(demand, q_depth) if m == MODE_APPLIED else 0.0
+            if want > bc[i]:
+                c_eq = bc[i] + rho * max(ar[i] - bc[i], 0.0) / (1.0 + rho)
+                goal = min(want, c_eq)
+                if goal > bc[i]:
+                    new_bc = _relax(bc[i], goal, al_app)
+                    ar[i] -= (new_bc - bc[i]) / rho
+                    bc[i] = new_bc
+            else:
+                bc[i] = _relax(bc[i], want, al_rel)
+
+
+@njit(cache=True)
+def _fill_alphas(params: np.ndarray, h: float, alphas: np.ndarray) -> None:
+    """``exp(-h / T)`` of the local lags (AL_* order) for a substep of ``h`` [s]."""
+    alphas[AL_APP] = math.exp(-h / params[P_TAU_APP])
+    alphas[AL_REL] = math.exp(-h / params[P_TAU_REL])
+    alphas[AL_QS] = math.exp(-h / params[P_TAU_QS])
+    alphas[AL_EV] = math.exp(-h / params[P_TAU_EV])
+    alphas[AL_E1] = math.exp(-h / params[P_TAU_E1])
+    alphas[AL_E2] = math.exp(-h / params[P_TAU_E2])
 
 
 @njit(cache=True)
@@ -576,214 +1047,45 @@ def freight_air_step(
 
     ``er_kpa[j]``: the pressure valve ``j`` holds its pipe at (the charged pressure:
     release and recharge; lower: a service reduction); ``emergency[j] > 0.5``: valve ``j``
-    vents the pipe in emergency. Accurate for any ``dt`` (internally substepped to the
-    pipe's stability limit).
+    vents the pipe in emergency. Any ``dt``: the kernel substeps by its rule (module
+    docstring), the last substep ending at ``t + dt``.
     """
-    n = int(params[P_N])
-    nv = int(params[P_NV])
     if dt <= 0.0:
         return
-    n_sub = math.ceil(dt / params[P_H_MAX] - 1e-9)
-    n_sub = max(n_sub, 1)
-    h = dt / n_sub
-    ref = params[P_REF]
-    rho = params[P_RHO]
-    eps = params[P_EPS]
-    a_m = params[P_AR_M]
-    e_m = a_m * eps / rho
-    g = params[P_G]
-    s_app = params[P_S_APP]
-    s_rel = params[P_S_REL]
-    q_depth = params[P_QS_DEPTH]
-    qs_s = params[P_QS_S]
-    e_stage = params[P_E_STAGE]
-    speeds = np.array([params[P_C_REL], params[P_C_APP], params[P_C_EM]])
-    al_app = math.exp(-h / params[P_TAU_APP])
-    al_rel = math.exp(-h / params[P_TAU_REL])
-    al_qs = math.exp(-h / params[P_TAU_QS])
-    al_ev = math.exp(-h / params[P_TAU_EV])
-    al_e1 = math.exp(-h / params[P_TAU_E1])
-    al_e2 = math.exp(-h / params[P_TAU_E2])
-    tau_ch = params[P_TAU_CH]
-
-    x = params[P_HEAD + PB_X * n : P_HEAD + (PB_X + 1) * n]
-    ell = params[P_HEAD + PB_ELL * n : P_HEAD + (PB_ELL + 1) * n]
-    k = params[P_HEAD + PB_K * n : P_HEAD + (PB_K + 1) * n]
-    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
-    valve_at = params[P_HEAD + P_BLOCKS * n : P_HEAD + P_BLOCKS * n + nv]
-
-    base = ST_HEAD
-    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
-    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
-    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
-    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
-    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
-    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
-    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
-    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
-    launch = state[base + SB_LAUNCH * n : base + (SB_LAUNCH + 1) * n]
-    arrive = state[base + SB_ARRIVE * n : base + (SB_ARRIVE + 1) * n]
-    vbase = base + S_BLOCKS * n
-    fl0 = vbase + 2 * nv  # launch times, N_FRONTS per valve
-    ft0 = fl0 + nv * N_FRONTS  # types, N_FRONTS per valve
-
-    flux = np.zeros(n)
-    for _ in range(n_sub):
+    n = int(params[P_N])
+    nv = int(params[P_NV])
+    h_min = params[P_H_MIN]
+    h_max = params[P_H_MAX]
+    growth = params[P_H_GROWTH]
+    t_stop = state[ST_T] + dt
+    scratch = _scratch_start(n, nv) + SC_BLOCKS * n
+    alphas = state[scratch : scratch + N_ALPHAS]
+    h_alphas = -1.0
+    while True:
+        _launch_fronts(params, state, er_kpa, emergency)
         t = state[ST_T]
-        t_end = t + h
-        # 1. the valves: a new front when the command departs from the pipe at the valve
-        for j in range(nv):
-            v = int(valve_at[j])
-            vm = int(state[vbase + 2 * j + SV_MODE])
-            new_type = -1
-            if emergency[j] > 0.5:
-                if vm != PH_EMERGENCY:
-                    new_type = PH_EMERGENCY
-            elif vm == PH_RELEASE:
-                if er_kpa[j] < bp[v] - s_app:
-                    new_type = PH_APPLY
-            elif er_kpa[j] > bp[v] + s_rel:
-                new_type = PH_RELEASE
-            if new_type >= 0:
-                count = int(state[vbase + 2 * j + SV_COUNT])
-                slot = count % N_FRONTS
-                state[fl0 + j * N_FRONTS + slot] = t
-                state[ft0 + j * N_FRONTS + slot] = new_type
-                state[vbase + 2 * j + SV_COUNT] = count + 1
-                state[vbase + 2 * j + SV_MODE] = new_type
-        # 2. the fronts: each cell takes the type of the newest-launched front that reached it
-        for i in range(n):
-            best_launch = launch[i]
-            best_type = -1
-            best_arrive = 0.0
-            for j in range(nv):
-                distance = abs(x[i] - x[int(valve_at[j])])
-                for f in range(N_FRONTS):
-                    t_launch = state[fl0 + j * N_FRONTS + f]
-                    if t_launch <= best_launch:
-                        continue
-                    kind = int(state[ft0 + j * N_FRONTS + f])
-                    t_arrive = t_launch + distance / speeds[kind]
-                    if t_arrive <= t_end:
-                        best_launch = t_launch
-                        best_type = kind
-                        best_arrive = t_arrive
-            if best_type >= 0:
-                phase[i] = best_type
-                launch[i] = best_launch
-                arrive[i] = best_arrive
-                if braked[i] > 0.5:
-                    if best_type == PH_EMERGENCY:
-                        if mode[i] != MODE_EMERGENCY:
-                            # AR and ER join to feed the BC
-                            if eps > 0.0:
-                                merged = (rho * ar[i] + eps * er[i]) / (rho + eps)
-                                ar[i] = merged
-                                er[i] = merged
-                            mode[i] = MODE_EMERGENCY
-                            trig[i] = best_arrive
-                    elif (
-                        best_type == PH_APPLY
-                        and mode[i] == MODE_RELEASED
-                        and ar[i] + s_app >= bp[i]
-                    ):
-                        # quick service carried along by the front
-                        mode[i] = MODE_APPLIED
-                        a0[i] = ar[i]
-                        trig[i] = best_arrive
-        # 3. the distributors' own thresholds
-        for i in range(n):
-            if braked[i] < 0.5:
-                continue
-            if mode[i] == MODE_RELEASED:
-                if ar[i] - bp[i] > s_app:
-                    mode[i] = MODE_APPLIED
-                    a0[i] = ar[i]
-                    trig[i] = t
-            elif mode[i] == MODE_APPLIED:
-                if direct[i] > 0.5:
-                    if bp[i] > ar[i] + s_rel:
-                        mode[i] = MODE_RELEASED
-                elif bp[i] > ref - s_app:
-                    mode[i] = MODE_RELEASED
-            elif phase[i] != PH_EMERGENCY and bp[i] > ar[i] + s_rel:
-                mode[i] = MODE_RELEASED
-        # 4. flow along the pipe (explicit), only between cells of one phase
-        for i in range(n):
-            flux[i] = 0.0
-        for i in range(n - 1):
-            if phase[i] == phase[i + 1]:
-                q = k[i] * (bp[i] - bp[i + 1]) * h
-                flux[i] -= q
-                flux[i + 1] += q
-        for i in range(n):
-            bp[i] += flux[i] / ell[i]
-        # the valves hold their cells (exactly over the substep); in emergency they vent
-        for j in range(nv):
-            v = int(valve_at[j])
-            if int(state[vbase + 2 * j + SV_MODE]) != PH_EMERGENCY:
-                bp[v] = _relax(bp[v], er_kpa[j], math.exp(-h * g / ell[v]))
-        # 5. each vehicle's own exchanges
-        for i in range(n):
-            if phase[i] == PH_EMERGENCY:
-                bp[i] = bp[i] * al_ev
-            if braked[i] < 0.5:
-                continue
-            m = mode[i]
-            if m == MODE_EMERGENCY:
-                target = (rho * ar[i] + eps * er[i] + bc[i]) / (rho + eps + 1.0)
-                if bc[i] < target:
-                    alpha = al_e1 if bc[i] < e_stage else al_e2
-                    new_bc = _relax(bc[i], target, alpha)
-                    given = (new_bc - bc[i]) / (rho + eps)
-                    bc[i] = new_bc
-                    ar[i] -= given
-                    if eps > 0.0:
-                        er[i] -= given
-                continue
-            # quick service: vent the local pipe to its depth below the AR's start
-            if m == MODE_APPLIED and t - trig[i] < qs_s:
-                floor = a0[i] - q_depth
-                if bp[i] > floor:
-                    bp[i] = _relax(bp[i], floor, al_qs)
-            if direct[i] > 0.5:
-                if m == MODE_APPLIED:
-                    lap = min(bp[i], a0[i] - q_depth)
-                    a_eq = ar[i] - max(ar[i] - bc[i], 0.0) / (1.0 + rho)
-                    target = max(lap, a_eq)
-                    if ar[i] > target:
-                        new_ar = _relax(ar[i], target, al_app)
-                        bc[i] += rho * (ar[i] - new_ar)
-                        ar[i] = new_ar
-                else:
-                    bc[i] = bc[i] * al_rel
-            else:
-                # graduated release: the BC follows rho (p_ref - p), above the threshold
-                demand = ref - bp[i]
-                want = rho * max(demand, q_depth) if m == MODE_APPLIED else 0.0
-                if want > bc[i]:
-                    c_eq = bc[i] + rho * max(ar[i] - bc[i], 0.0) / (1.0 + rho)
-                    goal = min(want, c_eq)
-                    if goal > bc[i]:
-                        new_bc = _relax(bc[i], goal, al_app)
-                        ar[i] -= (new_bc - bc[i]) / rho
-                        bc[i] = new_bc
-                else:
-                    bc[i] = _relax(bc[i], want, al_rel)
-            # reservoirs charge from the pipe through their choke (exactly, pairwise)
-            charges_ar = (direct[i] > 0.5 and m == MODE_RELEASED) or direct[i] < 0.5
-            if charges_ar and bp[i] > ar[i]:
-                rate = (1.0 + a_m / ell[i]) / tau_ch
-                moved = (bp[i] - ar[i]) * (1.0 - math.exp(-rate * h)) / (1.0 / ell[i] + 1.0 / a_m)
-                bp[i] -= moved / ell[i]
-                ar[i] += moved / a_m
-            if eps > 0.0 and bp[i] > er[i]:
-                rate = (1.0 + e_m / ell[i]) / tau_ch
-                moved = (bp[i] - er[i]) * (1.0 - math.exp(-rate * h)) / (1.0 / ell[i] + 1.0 / e_m)
-                bp[i] -= moved / ell[i]
-                er[i] += moved / e_m
-        state[ST_T] = t_end
+        next_arrival = math.inf
+        latest = NEVER
+        if _fronts_travelling(params, state):
+            next_arrival, latest = _reach_fronts(params, state)
+        latest = max(latest, _distributor_thresholds(params, state))
+        h_rule = min(max(h_min, growth * (t - latest)), h_max)
+        # equal substeps of at most h_rule to the end of the step, or to the next arrival
+        remaining = t_stop - t
+        h = remaining / max(math.ceil(remaining / h_rule - 1e-9), 1)
+        last = h >= remaining
+        if next_arrival < t + h - ARRIVAL_TOL_S:
+            h = next_arrival - t
+            last = False
+        _pipe_flow(params, state, er_kpa, h)
+        if h != h_alphas:
+            _fill_alphas(params, h, alphas)
+            h_alphas = h
+        _local_exchanges(params, state, h, alphas)
+        state[ST_T] = t_stop if last else t + h
+        _crossings(params, state, h)
+        if last:
+            break
 
 
 # --- simulation helpers (tests, docs) -------------------------------------------------------
