@@ -83,6 +83,21 @@ def _loader(name: str, data: dict[str, Any]) -> Callable[[dict[str, Any]], objec
         return line_from_mapping
     if "services" in data:
         return line_run_from_mapping  # a line-run file (railpilot line ...)
+    if name == "consist library.toml":
+        # the library of vehicle types and draft gears: read as a file defining them all,
+        # one vehicle of each (a type defined in a file is read as the library's are)
+        return lambda mapping: parse_consist(
+            {
+                "name": "every type",
+                **mapping,
+                "train": [
+                    {"type": "HXD1", "count": 1},
+                    {"type": "C80", "count": 1, "load": "loaded"},
+                    {"type": "C80", "count": 1, "load": "empty"},
+                ],
+            },
+            name,
+        )
     if name.startswith("consist "):
         return lambda mapping: parse_consist(mapping, name)
     return _scenario

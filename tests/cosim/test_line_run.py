@@ -133,14 +133,15 @@ def test_the_baseline_runs_the_same_day_without_advice(advised, baseline):
     assert kpis["baseline"]["target_points_passed"] == 0
     assert kpis["baseline"]["overspeeds"] == 0, base.overspeeds
     # the baseline drives to the limits: no train of it runs its section slower than the
-    # advised plan, and one at least faster (where the delays behind the failure left the
-    # advised plan any time to spare)
+    # advised plan (where the delays behind the failure left the advised plan no time to
+    # spare it drives the fastest run too: the same within the re-plans' rounding, 0.5 s),
+    # and one at least faster
     times = [
         (base.drivers[i].sections[0].running_time_s, run.sections[0].running_time_s)
         for i, run in advised.drivers.items()
     ]
-    assert all(fast <= planned + 1e-6 for fast, planned in times)
-    assert any(fast < planned for fast, planned in times)
+    assert all(fast <= planned + 0.5 for fast, planned in times)
+    assert any(fast < planned - 0.5 for fast, planned in times)
 
 
 def test_the_static_limits_are_checked_where_the_trains_reach_them(day, baseline):
