@@ -357,5 +357,5 @@ def test_a_line_run_can_run_its_trains_on_the_consist_model():
 
 @pytest.mark.parametrize("model", ["consists", 1, ""])
 def test_an_unknown_train_model_is_refused_by_name(model):
-    with pytest.raises(ConfigError, match="trains.model"):
+    with pytest.raises(ConfigError, match=r"trains\.model"):
         scenario_from_mapping(BASE | {"trains": {"model": model}})
