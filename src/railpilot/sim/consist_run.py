@@ -231,17 +231,24 @@ class ConsistDriver:
 
     ``profile_m``, ``profile_mps``: a speed [m/s] by head position [m] that the mode
     ``follow`` tracks. Speed holding is a PI law on the lead's speed error giving the
-    effort fraction (``kp`` per m/s, ``ki`` per m); the air brake in ``follow`` is used in
-    cycles: applied (``cycle_reduction_kpa``) when the train runs ``apply_above_kmh``
-    over the profile with full regeneration, released in full when it has fallen
-    ``release_below_kmh`` under it, and never released below ``min_release_kmh``.
-    ``stop_m``: where a profile's stop is; the driver makes ``stop_reduction_kpa`` once
-    the head is within ``v stop_lead_s + v^2 / (2 stop_decel_mps2)`` of it
-    (``stop_decel_mps2``: what that reduction gives once built up), and trims with
-    regeneration to the curve ``sqrt(2 stop_decel_mps2 d)`` to the stop ``d`` ahead.
-    ``release_wait_s``: after a release, no traction for this long (the brakes release
-    along the train meanwhile). ``end_at_rest``: the run
-    ends when the script is done (or the profile's stop reached) and the train stands.
+    effort fraction (``kp`` per m/s, ``ki`` per m). In ``follow`` the driver reads the
+    profile ahead (LOOK_AHEAD_M, past the distance the air brake builds up in,
+    ``stop_lead_s``): for the deepest deceleration it asks for, regeneration first, and
+    the air brake for the rest as a reduction of that depth (at least
+    ``cycle_reduction_kpa``, at most full service; deepened, never eased); where the
+    profile holds a speed that regeneration at its limit cannot, an application of
+    ``cycle_reduction_kpa`` once the train, at its present acceleration, would be
+    ``apply_above_kmh`` over it after ``stop_lead_s``. It releases in full when the
+    train has fallen ``release_below_kmh`` under the profile, never below
+    ``min_release_kmh`` (and always at a stand short of the stop), and draws no traction
+    while applied nor for ``release_wait_s`` after a release (the brakes release along
+    the train meanwhile). ``stop_m``: where a profile's stop is; the driver makes
+    ``stop_reduction_kpa`` once the head is within ``v stop_lead_s + v^2 / (2 a)`` of it
+    (``a``: ``stop_decel_mps2``, what that reduction gives once built up, with the
+    gradient under the train), and trims with regeneration to the curve ``sqrt(2 a d)``
+    to the stop ``d`` ahead; no other application within APPROACH_FACTOR times that
+    distance. ``end_at_rest``: the run ends when the script is done (or the profile's
+    stop reached) and the train stands.
     """
 
     commands: tuple[DriverCommand, ...] = ()
@@ -377,7 +384,7 @@ class ConsistInputs(NamedTuple):
     loco: np.ndarray  # (n_loco, 7): vehicle, T0, PT, vmax, E0, PE, fade
     remote: np.ndarray  # (n_loco,) 1.0 for a remote unit
     valve_of_loco: np.ndarray  # (n_loco,) index into the valves, -1: no valve
-    brake_force_n: np.ndarray  # (n_mass,) full-service friction force of each mass
+    brake_force_n: np.ndarray  # (n_vehicles,) full-service friction force of each vehicle
     mass_of_vehicle: np.ndarray  # (n_vehicles,) the mass a vehicle belongs to
     charged_kpa: float
     full_service_bc_kpa: float
