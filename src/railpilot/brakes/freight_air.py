@@ -59,7 +59,7 @@ substep grows to 50 ms, where backward Euler is stable and accurate to a fractio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -566,12 +566,6 @@ def bc_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
 def er_kpa_of(params: np.ndarray, state: np.ndarray) -> np.ndarray:
     """Each vehicle's emergency-reservoir pressure [kPa] (a view of ``state``)."""
     return _state_block(params, state, SB_ER)
-
-
-@njit(cache=True)
-def ar_at_application_kpa(params: np.ndarray, state: np.ndarray) -> np.ndarray:
-    """Each distributor's AR pressure when its latest application started [kPa] (a view)."""
-    return _state_block(params, state, SB_A0)
 
 
 @njit(cache=True)
@@ -1150,8 +1144,3 @@ def recharge_time_s(
                 return elapsed + (step + 1) * dt
         elapsed += chunk
     return math.inf
-
-
-def field_names() -> tuple[str, ...]:
-    """The configuration's keys (for a loader reading them from a file)."""
-    return tuple(f.name for f in fields(FreightAirBrake))

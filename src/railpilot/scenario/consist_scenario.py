@@ -9,7 +9,6 @@ key as written, the value and what is allowed (railpilot.errors.ScenarioError).
 
 from __future__ import annotations
 
-import dataclasses
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -17,7 +16,7 @@ from typing import Any
 from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.errors import ScenarioError
 from railpilot.scenario.consist_file import load_consist
-from railpilot.scenario.loader import _build, _line, _Table
+from railpilot.scenario.loader import _build, _line, _nested_config, _Table
 from railpilot.sim.consist_run import (
     ConsistDriver,
     ConsistRunSettings,
@@ -42,17 +41,6 @@ def _consist(top: _Table, base_dir: Path) -> Consist:
             "consist", name, f"one of {', '.join(CONSIST_PRESETS)} or a consist file (.toml)"
         )
     return load_consist(path)
-
-
-def _air(t: _Table) -> FreightAirBrake:
-    kw: dict[str, Any] = {}
-    for f in dataclasses.fields(FreightAirBrake):
-        if t.has(f.name):
-            value = t.raw(f.name)
-            kw[f.name] = value
-    air = _build("air", lambda: FreightAirBrake(**kw))
-    t.done()
-    return air
 
 
 def _sim(t: _Table) -> ConsistRunSettings:
@@ -120,10 +108,15 @@ def consist_scenario_from_mapping(
     name = top.string("name", "")
     consist = _consist(top, Path(base_dir))
     line = _line(top.table("line"))
-    air = _air(top.table("air"))
+    air_table = top.table("air")
+    if air_table.has("charged_kpa"):
+        raise ScenarioError(
+            "air.charged_kpa",
+            air_table.raw("charged_kpa"),
+            "no such key here: the pipe is charged to the consist's brake_pipe_kpa",
+        )
+    air = _nested_config(air_table, FreightAirBrake)
     sim = _sim(top.table("sim"))
     driver = _driver(top.table("driver"))
     top.done()
-    if consist.brake_pipe_kpa != air.charged_kpa:
-        air = dataclasses.replace(air, charged_kpa=consist.brake_pipe_kpa)
     return ConsistScenario(name, consist, line, driver, air, sim)

@@ -340,8 +340,8 @@ class ConsistScenario:
     def __post_init__(self) -> None:
         # a reduction is the driver's at the brake valve: none below the minimum (the
         # distributors would not all apply), none beyond full service (nothing more)
-        low = self.air.min_reduction_kpa
-        high = self.air.full_service_reduction_kpa()
+        low = self.air_brake.min_reduction_kpa
+        high = self.air_brake.full_service_reduction_kpa()
         allowed = f"0 (a release) or a reduction in [{low:g}, {high:.4g}] kPa"
         for i, command in enumerate(self.driver.commands):
             r = command.reduction_kpa
@@ -351,6 +351,11 @@ class ConsistScenario:
             r = getattr(self.driver, name)
             if not low <= r <= high:
                 raise ConfigError(f"driver.{name}", r, allowed[allowed.index("a reduction") :])
+
+    @property
+    def air_brake(self) -> FreightAirBrake:
+        """The air brake as charged on this consist (its ``brake_pipe_kpa``)."""
+        return dataclasses.replace(self.air, charged_kpa=self.consist.brake_pipe_kpa)
 
 
 @dataclass
@@ -857,7 +862,7 @@ class ConsistStepper:
         valve_of_loco = np.full(len(locos), -1.0)
         valve_of_loco[with_valve] = np.arange(self.n_valves)
         centres = consist.front_m() + consist.lengths_m() / 2.0
-        air = dataclasses.replace(scenario.air, charged_kpa=consist.brake_pipe_kpa)
+        air = scenario.air_brake
         self.air_p, self.air_s = freight_air.pack_freight_air(
             air,
             centres,
