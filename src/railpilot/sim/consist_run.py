@@ -37,6 +37,7 @@ from railpilot.brakes import freight_air
 from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.checks import check_number
 from railpilot.errors import ConfigError
+from railpilot.interp import interp_at
 from railpilot.jit import njit
 from railpilot.sim import ltd
 from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps
@@ -385,7 +386,7 @@ class ConsistInputs(NamedTuple):
     driver: np.ndarray  # N_DRIVER
     commands: np.ndarray  # (k, N_CMD)
     profile_m: np.ndarray
-    profile_mps: np.ndarray
+    profile_v2: np.ndarray  # the profile's speeds squared [m^2/s^2]
     loco: np.ndarray  # (n_loco, 7): vehicle, T0, PT, vmax, E0, PE, fade
     remote: np.ndarray  # (n_loco,) 1.0 for a remote unit
     valve_of_loco: np.ndarray  # (n_loco,) index into the valves, -1: no valve
@@ -395,25 +396,11 @@ class ConsistInputs(NamedTuple):
     full_service_bc_kpa: float
 
 
-@njit(cache=True)
-def _profile_speed(x: float, xs: np.ndarray, ys: np.ndarray) -> float:
-    """The profile's speed [m/s] at ``x`` [m]: ``v^2`` interpolated linearly."""
-    if xs.shape[0] == 0:
-        return 0.0
-    if x <= xs[0]:
-        return ys[0]
-    if x >= xs[-1]:
-        return ys[-1]
-    lo, hi = 0, xs.shape[0] - 1
-    while hi - lo > 1:
-        mid = (lo + hi) // 2
-        if xs[mid] <= x:
-            lo = mid
-        else:
-            hi = mid
-    w = (x - xs[lo]) / (xs[hi] - xs[lo])
-    # v^2 linear between knots: uniform acceleration, as the planner's passes compute it
-    return math.sqrt(ys[lo] ** 2 + w * (ys[hi] ** 2 - ys[lo] ** 2))
+@njit(cache=True, inline="always")
+def _profile_speed(x: float, xs: np.ndarray, v2: np.ndarray) -> float:
+    """The profile's speed [m/s] at ``x`` [m]: ``v^2`` [m^2/s^2] linear between knots
+    (uniform acceleration, as the planner's passes compute it), held beyond the ends."""
+    return math.sqrt(interp_at(x, xs, v2)) if xs.shape[0] > 0 else 0.0
 
 
 #: within this of the charged pressure (pipe, reservoirs) and of 0 (cylinders) the air
@@ -540,7 +527,7 @@ def consist_kernel(
             goal = value
             if mode == MODE_PROFILE:
                 # a floor, so that a profile from rest starts the train
-                goal = max(_profile_speed(head_m, inp.profile_m, inp.profile_mps), MIN_GOAL_MPS)
+                goal = max(_profile_speed(head_m, inp.profile_m, inp.profile_v2), MIN_GOAL_MPS)
             err = goal - v_lead
             raw = drv[DP_KP] * err + drv[DP_KI] * integral
             if -1.0 < raw < 1.0 or raw * err < 0.0:
@@ -577,7 +564,7 @@ def consist_kernel(
                         ahead_m = look - v_lead * lead
                         # the plan's own stop is the stop's application's to brake for
                         if ahead_m > 1.0 and head_m + look < approach_m:
-                            g_ahead = _profile_speed(head_m + look, inp.profile_m, inp.profile_mps)
+                            g_ahead = _profile_speed(head_m + look, inp.profile_m, inp.profile_v2)
                             if v_lead > g_ahead:
                                 kinematic = max(
                                     kinematic, (v_lead**2 - g_ahead**2) / (2.0 * ahead_m)
@@ -903,7 +890,7 @@ class ConsistStepper:
             drv,
             commands,
             np.asarray(driver.profile_m, dtype=float),
-            np.asarray(driver.profile_mps, dtype=float),
+            np.asarray(driver.profile_mps, dtype=float) ** 2,
             _locomotive_rows(consist),
             remote,
             valve_of_loco,
@@ -984,7 +971,7 @@ class ConsistStepper:
         self.inputs = self.inputs._replace(
             driver=driver,
             profile_m=np.asarray(profile_m, dtype=float),
-            profile_mps=np.asarray(profile_mps, dtype=float),
+            profile_v2=np.asarray(profile_mps, dtype=float) ** 2,
         )
         self.metrics[C_STOPPING] = 0.0
         self.metrics[C_ENDED] = 0.0
