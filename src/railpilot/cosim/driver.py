@@ -44,7 +44,7 @@ from typing import Any
 
 import numpy as np
 
-from railpilot.control.pstop import PredictiveStop, retarget
+from railpilot.control.pstop import PredictiveStop
 from railpilot.errors import ConfigError
 from railpilot.ground.targets import is_clear
 from railpilot.line.model import UP, RailLine
@@ -61,11 +61,11 @@ from railpilot.link.messages import PlannedCurve as CurveReport
 from railpilot.link.messages import RunningTimes, TargetPoint, TargetReason, TravelDirection
 from railpilot.onboard.consist_drive import ConsistDrive
 from railpilot.onboard.drive import (
-    CONSIST_MAX_DT_S,
     DEFAULT_MARGIN_KMH,
     StationRoute,
     TrainPreset,
-    drive_scenario,
+    follow_plan,
+    plan_follower,
     station_route,
     stop_controller,
     train_preset,
@@ -354,33 +354,19 @@ class TrainDriver:
         if not np.any(sec.ceiling_mps > 0.0):
             return False
         curve = self._curve(route, end_s, sec, planned, 0.0)
-        duration_s = 3.0 * planned + 3_600.0
-        stepper: Stepper | ConsistDrive
-        if self.model == "consist":
-            assert self.preset.consist is not None
-            stepper = ConsistDrive(
-                self.preset.consist,
-                route.vehicle_line,
-                PlannedProfile(curve.s_m, curve.speed_mps),
-                end_s,
-                min(self.dt_s, CONSIST_MAX_DT_S),
-                duration_s,
-                record_every_s=RECORD_EVERY_S,
-            )
-        else:
-            scenario = drive_scenario(
-                self.preset,
-                route.vehicle_line,
-                curve,
-                self.dt_s,
-                duration_s=duration_s,
-                record_every=round(RECORD_EVERY_S / self.dt_s),
-            )
-            controller = _controller(
+        stepper = plan_follower(
+            self.preset,
+            route.vehicle_line,
+            curve,
+            end_s,
+            self.dt_s,
+            3.0 * planned + 3_600.0,
+            model=self.model,
+            controller=_controller(
                 self.line, self.service.kind, from_id, to_id, self.margin_kmh, self.dt_s
-            )
-            stepper = Stepper(scenario, controller)
-            retarget(stepper.controller_params, stepper.controller_state, end_s)
+            ),
+            record_every_s=RECORD_EVERY_S,
+        )
         self._running = _Running(route, stepper, t, planned, mrsp, record, plan=(curve, 0.0, end_s))
         return True
 
@@ -602,11 +588,7 @@ class TrainDriver:
             )
             profile = PlannedProfile(s_stand, v_stand)
             running.plan = None
-        if isinstance(stepper, ConsistDrive):
-            stepper.follow(profile, end_s)
-        else:
-            stepper.replace_reference(profile)
-            retarget(stepper.controller_params, stepper.controller_state, end_s)
+        follow_plan(stepper, profile, end_s)
         running.record.replans += 1
         if running.stopped:
             stepper.restart()

@@ -376,22 +376,9 @@ def drive(
         if route.entry_ahead(tsr, 0.0)
     ]
     duration_s = max(900.0, 2.5 * planned.running_time_s)
-    stepper: Stepper | ConsistDrive
-    if model == "consist":
-        assert preset.consist is not None
-        stepper = ConsistDrive(
-            preset.consist,
-            route.vehicle_line,
-            PlannedProfile(planned.s_m, planned.speed_mps),
-            end_s,
-            min(dt_s, CONSIST_MAX_DT_S),
-            duration_s,
-        )
-    else:
-        stepper = Stepper(
-            drive_scenario(preset, route.vehicle_line, planned, dt_s, duration_s),
-            stop_controller(preset, route.vehicle_line, end_s, dt_s),
-        )
+    stepper = plan_follower(
+        preset, route.vehicle_line, planned, end_s, dt_s, duration_s, model=model
+    )
     timeline = [(0.0, mrsp)]
     replans: list[Replan] = []
     for t_event in route.event_times():
@@ -420,12 +407,7 @@ def drive(
             checks.append(
                 _tsr_check_now(preset, route.table, tsr, direction, departure, s_now, v_now)
             )
-        profile = PlannedProfile(again.s_m + s_now, again.speed_mps)
-        if isinstance(stepper, ConsistDrive):
-            stepper.follow(profile, end_s)
-        else:
-            stepper.replace_reference(profile)
-            retarget(stepper.controller_params, stepper.controller_state, end_s)
+        follow_plan(stepper, PlannedProfile(again.s_m + s_now, again.speed_mps), end_s)
         if stepper.at_rest:
             stepper.restart()
     stepper.run_to_end()
@@ -792,6 +774,55 @@ def _tsr_check(
         return out
     out["speed_kmh"] = float(mps_to_kmh(float(np.interp(at_s, s, v))))
     return out | _check_fields(check, direction, departure_m)
+
+
+def plan_follower(
+    preset: TrainPreset,
+    vehicle_line: Line,
+    curve: PlannedCurve,
+    end_s: float,
+    dt_s: float,
+    duration_s: float,
+    *,
+    model: str,
+    controller: PredictiveStop | None = None,
+    record_every_s: float | None = None,
+) -> Stepper | ConsistDrive:
+    """The train that follows ``curve`` to its stop at ``end_s`` [m from the departure]:
+    the consist with its driver (``model`` ``"consist"``, at most a CONSIST_MAX_DT_S step),
+    or the point mass tracked by the precise-stop controller (``controller``: one of this
+    train and line to retarget, e.g. a cached one; else one is made for the stop).
+    ``record_every_s``: how often the run is recorded (None: the point mass every step,
+    the consist every second)."""
+    if model == "consist":
+        if preset.consist is None:
+            raise ConfigError("--model", model, f"point-mass: {preset.name} has no consist")
+        return ConsistDrive(
+            preset.consist,
+            vehicle_line,
+            PlannedProfile(curve.s_m, curve.speed_mps),
+            end_s,
+            min(dt_s, CONSIST_MAX_DT_S),
+            duration_s,
+            record_every_s=1.0 if record_every_s is None else record_every_s,
+        )
+    record_every = 1 if record_every_s is None else round(record_every_s / dt_s)
+    scenario = drive_scenario(preset, vehicle_line, curve, dt_s, duration_s, record_every)
+    if controller is None:
+        return Stepper(scenario, stop_controller(preset, vehicle_line, end_s, dt_s))
+    stepper = Stepper(scenario, controller)
+    retarget(stepper.controller_params, stepper.controller_state, end_s)
+    return stepper
+
+
+def follow_plan(stepper: Stepper | ConsistDrive, profile: PlannedProfile, end_s: float) -> None:
+    """A new plan from here for a running train (:func:`plan_follower`'s): ``profile`` to
+    a stop at ``end_s`` [m from the departure]."""
+    if isinstance(stepper, ConsistDrive):
+        stepper.follow(profile, end_s)
+    else:
+        stepper.replace_reference(profile)
+        retarget(stepper.controller_params, stepper.controller_state, end_s)
 
 
 def drive_scenario(
