@@ -1095,44 +1095,25 @@ def _result(
     lead = consist.vehicles[int(locos[0])].locomotive
     assert lead is not None
     j_to_kwh = 1.0 / 3.6e6
-    # where a coupling is: behind which vehicle, how far from the head
-    last_of_mass = np.array(
-        [
-            int(np.flatnonzero(mass_of_vehicle == m)[-1])
-            for m in range(int(mass_of_vehicle.max()) + 1)
-        ]
-    )
+    # the couplings between masses: behind which vehicle, how far from the head
+    last_of_mass = np.append(np.flatnonzero(np.diff(mass_of_vehicle)), consist.n_vehicles - 1)
     ends = consist.front_m() + consist.lengths_m()
 
-    def coupling(at: float) -> dict[str, Any]:
-        if not math.isfinite(at) or last_of_mass.size < 2:
-            return {"behind": None, "from_head_m": None}
-        v = int(last_of_mass[int(at)])
-        return {"behind": consist.vehicles[v].name, "from_head_m": float(ends[v])}
+    def largest(kind: str, force: int, at: int, when: int) -> dict[str, Any]:
+        """The largest force of ``kind`` and where and when (None: none in the run)."""
+        out: dict[str, Any] = {f"max_coupler_{kind}_kn": metrics[force] / 1e3}
+        found = metrics[force] > 0.0 and last_of_mass.size > 1
+        v = int(last_of_mass[int(metrics[at])]) if found else -1
+        out[f"max_coupler_{kind}_behind"] = consist.vehicles[v].name if found else None
+        out[f"max_coupler_{kind}_from_head_m"] = float(ends[v]) if found else None
+        out[f"max_coupler_{kind}_time_s"] = float(metrics[when]) if found else None
+        return out
 
-    tension_at = (
-        coupling(metrics[M_MAX_TENSION_AT]) if metrics[M_MAX_TENSION_N] > 0 else coupling(math.nan)
-    )
-    compression_at = (
-        coupling(metrics[M_MAX_COMPRESSION_AT])
-        if metrics[M_MAX_COMPRESSION_N] > 0
-        else coupling(math.nan)
-    )
     stop_t = metrics[M_STOP_T]
     emergency_t = metrics[M_EMERGENCY_T]
     out: dict[str, Any] = {
-        "max_coupler_tension_kn": metrics[M_MAX_TENSION_N] / 1e3,
-        "max_coupler_tension_behind": tension_at["behind"],
-        "max_coupler_tension_from_head_m": tension_at["from_head_m"],
-        "max_coupler_tension_time_s": _finite(metrics[M_MAX_TENSION_T])
-        if metrics[M_MAX_TENSION_N] > 0
-        else None,
-        "max_coupler_compression_kn": metrics[M_MAX_COMPRESSION_N] / 1e3,
-        "max_coupler_compression_behind": compression_at["behind"],
-        "max_coupler_compression_from_head_m": compression_at["from_head_m"],
-        "max_coupler_compression_time_s": _finite(metrics[M_MAX_COMPRESSION_T])
-        if metrics[M_MAX_COMPRESSION_N] > 0
-        else None,
+        **largest("tension", M_MAX_TENSION_N, M_MAX_TENSION_AT, M_MAX_TENSION_T),
+        **largest("compression", M_MAX_COMPRESSION_N, M_MAX_COMPRESSION_AT, M_MAX_COMPRESSION_T),
         "coupler_force_limit_kn": settings.coupler_limit_kn,
         "coupler_force_limit_exceeded_s": metrics[M_OVER_LIMIT_S],
         "air_brake_applications": int(metrics[M_APPLICATIONS]),
