@@ -84,7 +84,6 @@ __all__ = [
     "coupler_force_n",
     "coupling_force",
     "draft_gear_force_n",
-    "expand_to_vehicles",
     "gear_arrays",
     "initial_state",
     "ltd_step",
@@ -669,8 +668,7 @@ def lump_vehicles(
     the train's total slack and travel are kept.
 
     Returns a :class:`LumpedTrain`; its first five fields are :func:`pack_ltd`'s first
-    five arguments, ``lump_of_vehicle`` maps vehicles to lumps (:func:`lump_forces`,
-    :func:`expand_to_vehicles`).
+    five arguments, ``lump_of_vehicle`` maps vehicles to lumps (:func:`lump_forces`).
     """
     mass = _vector("masses_kg", masses_kg, None, positive=True)
     n = mass.shape[0]
@@ -763,8 +761,3 @@ def lump_forces(forces_n: npt.ArrayLike, lump_of_vehicle: np.ndarray) -> np.ndar
     """Per-vehicle forces [N] (drive, brake) summed per lump."""
     lump = np.asarray(lump_of_vehicle)
     return np.bincount(lump, weights=np.asarray(forces_n, dtype=float), minlength=lump.max() + 1)
-
-
-def expand_to_vehicles(values: npt.ArrayLike, lump_of_vehicle: np.ndarray) -> np.ndarray:
-    """A per-lump quantity (speed) given to each vehicle of the lump."""
-    return np.asarray(values)[np.asarray(lump_of_vehicle)]
