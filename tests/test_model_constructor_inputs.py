@@ -39,38 +39,9 @@ from railpilot.vehicle.traction import (
     Locomotive,
     RegenEnvelope,
     TractionEnvelope,
-    hxd1_locomotive,
 )
 from railpilot.vehicle.train import ElectricBrakeCurve, Train
-
-_GEAR = DraftGear("G", 0.01, 0.1, 1e5, 2e6, 0.2, 1e8, 1e5)
-_WAGON = {
-    "name": "W",
-    "kind": "wagon",
-    "mass_kg": 100e3,
-    "rotating_mass_factor": 0.02,
-    "length_m": 12.0,
-    "davis_a0": 0.92,
-    "davis_a1": 0.0048,
-    "davis_a2": 0.000125,
-    "service_brake_force_n": 50e3,
-    "distributor": "direct-release",
-    "draft_gear": _GEAR,
-}
-_LEAD = Vehicle(
-    **(
-        _WAGON
-        | {
-            "name": "L",
-            "kind": "locomotive",
-            "mass_kg": 200e3,
-            "length_m": 35.2,
-            "service_brake_force_n": 0.0,
-            "distributor": "none",
-            "locomotive": hxd1_locomotive(),
-        }
-    )  # type: ignore[arg-type]
-)
+from vehicle.consist_helpers import GEAR_FIELDS, WAGON_FIELDS, lead, wagon
 
 #: every model class with constructor arguments to check, with the fewest that build it
 BASE: dict[type, dict[str, object]] = {
@@ -97,18 +68,9 @@ BASE: dict[type, dict[str, object]] = {
     },
     ElectricBrakeCurve: {},
     Train: {},
-    DraftGear: {
-        "name": "G",
-        "slack_m": 0.01,
-        "travel_m": 0.1,
-        "preload_n": 1e5,
-        "force_at_travel_n": 2e6,
-        "unloading_ratio": 0.2,
-        "stop_stiffness_n_per_m": 1e8,
-        "damping_n_s_per_m": 1e5,
-    },
-    Vehicle: _WAGON,
-    Consist: {"name": "c", "vehicles": (_LEAD, Vehicle(**_WAGON))},  # type: ignore[arg-type]
+    DraftGear: GEAR_FIELDS,
+    Vehicle: WAGON_FIELDS,
+    Consist: {"name": "c", "vehicles": (lead(), wagon())},
     # eddy
     CoilParams: {},
     EddyBrakeParams: {},
