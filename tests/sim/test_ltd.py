@@ -325,9 +325,11 @@ def _impact(gear: DraftGear, m1: float, m2: float, v0: float) -> tuple[float, fl
 def test_gear_loss_at_the_default_substep(gear, v0, ratio, reach):
     """As a simulation runs (ltd_step at 0.05 s, the default substep): after a run-in that
     stays within the travel the energy left is the unloading curve's within 10 % of the
-    energy brought in, and energy is never gained beyond that. (Stops of 1e8 N/m or
-    stiffer and 10 times the gear's rate, as real couplings have: the run-in to the preload
-    must take about a substep; the slack wide enough to see the parting at 0.05 s.)"""
+    energy brought in plus the preload's work over one substep at the closing speed, and
+    energy is never gained beyond that. The preload is reached within a substep, so the
+    force jumps onto it up to a substep early or late: first order in the substep. (Stops of
+    1e8 N/m or stiffer and 10 times the gear's rate, as real couplings have; the slack wide
+    enough to see the parting at 0.05 s.)"""
     gear = DraftGear(
         "g", 0.3, gear.travel_m, gear.preload_n, gear.force_at_travel_n,
         min(gear.unloading_ratio, 0.9),
@@ -346,18 +348,19 @@ def test_gear_loss_at_the_default_substep(gear, v0, ratio, reach):
     inp = train([m1, m2], gear, uniform_grade(0.0))
     state = initial_state(inp, 0.0, 0.0)
     speeds_mps(state, 2)[:] = [0.0, v0]
-    touched = False
+    # one impact: the wagons part (the rear now slower than the front) and are back within
+    # the slack; a contact may begin and end inside one 0.05 s step
     for _ in range(400):
         ltd_step(inp, state, np.zeros(2), np.zeros(2), 0.05)
-        inside = abs(relative_displacement(inp, state)[0]) < 0.15
-        if touched and inside:
+        v = speeds_mps(state, 2)
+        parted = v[1] < v[0] and abs(relative_displacement(inp, state)[0]) < 0.15
+        if parted:
             break
-        touched = touched or not inside
-    assert touched and inside
-    v = speeds_mps(state, 2)
+    assert parted
     e_out = 0.5 * m1 * m2 / (m1 + m2) * (v[0] - v[1]) ** 2
-    assert abs(e_out - e_back) < 0.1 * e_in
-    assert e_out < 1.05 * e_in
+    jump = gear.preload_n * v0 * inp.max_substep_s[0]
+    assert abs(e_out - e_back) < 0.1 * e_in + jump
+    assert e_out < 1.05 * e_in + jump
 
 
 # --- against the point mass
