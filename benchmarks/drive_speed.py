@@ -1,4 +1,4 @@
-"""Benchmark: wall time of a 100 km heavy-haul run (issue 9), at a 0.1 s step.
+"""Benchmark: wall time of a 100 km heavy-haul run, at a 0.1 s step.
 
 The example's train and locomotive (examples/heavy_haul_run.toml) on a 100 km line with two
 12 per mille descents, from rest to a station stop, PID on the locomotive drive, with the

@@ -1,6 +1,6 @@
 """How many trains one ground front-server process holds with running-info p99 < 50 ms.
 
-Runs ``railpilot link loadtest`` (railpilot.net.loadtest) at increasing train counts
+Runs ``railpilot link loadtest`` (railpilot.rigs.loadtest) at increasing train counts
 (:data:`COUNTS`, up to the load test's ``MAX_TRAINS``), a short run each, and stops a
 ladder at the first count whose p99 is 50 ms or more (or that loses a frame). Two ladders:
 
@@ -27,7 +27,7 @@ import platform
 import sys
 from typing import Any
 
-from railpilot.net.loadtest import MAX_TRAINS, LoadtestOptions, run_loadtest
+from railpilot.rigs.loadtest import MAX_TRAINS, LoadtestOptions, run_loadtest
 
 COUNTS = (250, 500, 750, 1000, 1500, 2000, 2500, 3000, 4000, 5000)
 GOAL_P99_MS = 50.0

@@ -9,7 +9,7 @@ every second. Seeded: the same run every time.
 
 Prints one JSON object: ``sim_s`` (simulated), ``wall_s``, ``realtime_factor``
 (sim_s / wall_s), ``train_hours`` (hours of trains on the line), ``wall_ms_per_train_hour``,
-and the run's safety KPIs. Issue 12's goal: a realtime factor of at least 500 for 60
+and the run's safety KPIs. The goal: a realtime factor of at least 500 for 60
 trains over 9 h on a 2-core machine. It is reported, never asserted.
 
 The baseline, measured in the same run (before and after the day, so the machine's drift
@@ -39,7 +39,7 @@ import statistics
 from link_speed import frames_per_s  # benchmarks/ is the script's directory
 
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import scenario_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping
 from railpilot.link import Heartbeat
 
 #: Repetitions of the protocol's baseline, before the day and again after it.
@@ -84,10 +84,10 @@ def main() -> None:
     parser.add_argument("--seed", type=int, default=1)
     args = parser.parse_args()
     # compile the core for both kinds of train (a loaded and an empty one on the line)
-    run_line(scenario_from_mapping(scenario(2, 0.25, 0.0, args.seed)))
+    run_line(line_scenario_from_mapping(scenario(2, 0.25, 0.0, args.seed)))
     protocol = protocol_frames_per_s()
     result = run_line(
-        scenario_from_mapping(scenario(args.trains, args.hours, args.loss, args.seed))
+        line_scenario_from_mapping(scenario(args.trains, args.hours, args.loss, args.seed))
     )
     protocol += protocol_frames_per_s()
     kpis = result.kpis()

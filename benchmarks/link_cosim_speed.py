@@ -8,7 +8,7 @@ this measures the link and the ground in the loop, not yet the trains' simulatio
 
 Prints one JSON object: ``sim_s`` (simulated), ``wall_s``, ``realtime_factor``
 (sim_s / wall_s), ``frames`` (ground and onboard, received), and the channel's counts.
-Issue 12's goal for the whole system, 60 trains over a 9-hour day, is a realtime factor
+The goal for the whole system, 60 trains over a 9-hour day, is a realtime factor
 of at least 500. It is reported, never asserted.
 
 Usage: python benchmarks/link_cosim_speed.py [--trains 60] [--hours 1] [--loss 0.3]
@@ -25,8 +25,8 @@ from railpilot.cosim.link_sim import LinkSim, SimTrain
 from railpilot.ground.operations import parse_operation
 from railpilot.line.loader import load_line
 from railpilot.link import OnboardConfig, TravelDirection
+from railpilot.link.keys import seeded_test_keys as loadtest_keys
 from railpilot.net.client import Trajectory
-from railpilot.net.loadtest import loadtest_keys
 
 
 def main() -> None:

@@ -7,7 +7,7 @@ loop alone on a prepared chunk (``kernel_only``: preparation and kernel seconds,
 ``steps_per_s_per_core``, plant steps per second per core; a Monte Carlo run ends at its
 stop, so the steps counted are the ones the runs took). ``prepare_s`` and ``kernel_s`` at
 the top are that chunk's seconds scaled to ``runs``. Not a test: the goal --
-10,000 runs in under 1.5 s on 2 cores (issue 9), memory under 1 GB -- is reported, never
+10,000 runs in under 1.5 s on 2 cores, memory under 1 GB -- is reported, never
 asserted. ``--scaling`` also times 1,000, 10,000 and 100,000 runs.
 
 Usage: python benchmarks/montecarlo_speed.py [--runs 10000] [--scaling]

@@ -1,4 +1,4 @@
-"""Benchmark: planning one section's energy-efficient curve (issue 10, item 6).
+"""Benchmark: planning one section's energy-efficient curve.
 
 A 45 km heavy-haul section (10,000 t, 1,600 m, HXD1) with an 8 km descent of 12 per mille,
 a 4 per mille ascent and a 45 km/h restriction; the running time is the fastest run's plus

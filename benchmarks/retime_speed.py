@@ -1,4 +1,4 @@
-"""Benchmark: the ground's re-timing LP for 100 trains x 30 sections (issue 11 item 2).
+"""Benchmark: the ground's re-timing LP for 100 trains x 30 sections.
 
 A synthetic but realistic problem: 100 loaded trains queued at the origin of a 30-section
 route, departing every 10 min, a fixed-block headway of 8 min, 2 min stops; per section a
@@ -26,7 +26,7 @@ import time
 
 import numpy as np
 
-from railpilot.ground.retime import (
+from railpilot.ground.running_time_lp import (
     EnergyCurve,
     RetimeProblem,
     Section,

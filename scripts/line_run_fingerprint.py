@@ -66,13 +66,13 @@ def _runs() -> dict[str, Any]:
     import numpy as np
 
     from railpilot.cosim.line_run import run_line
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
     out: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp:
         scenarios = (
-            ("short_day", load_scenario(ROOT / "examples" / "line_short_day.toml")),
-            ("heavy_haul_12_trains_3h", load_scenario(_heavy_haul_cut(Path(tmp)))),
+            ("short_day", load_line_scenario(ROOT / "examples" / "line_short_day.toml")),
+            ("heavy_haul_12_trains_3h", load_line_scenario(_heavy_haul_cut(Path(tmp)))),
         )
     for name, scenario in scenarios:
         for advised in (True, False):

@@ -1,4 +1,4 @@
-"""``railpilot drive`` (issue 10 item 9, first cut): one object on stdout with the documented
+"""``railpilot drive``: one object on stdout with the documented
 keys; bad values exit 2 and write nothing."""
 
 from __future__ import annotations

@@ -38,6 +38,7 @@ def run_cli(capsys, *extra):
     return code, out, err
 
 
+@pytest.mark.slow
 def test_json_is_exactly_one_object_on_stdout():
     proc = subprocess.run(
         [sys.executable, "-m", "railpilot.cli", *ARGS, "--no-progress"],

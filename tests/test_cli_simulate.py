@@ -1,6 +1,6 @@
 """``railpilot simulate`` (railpilot.commands.simulate) end to end.
 
-Issue 9 item 7: files written with ``--out`` are named after the scenario *and* the
+files written with ``--out`` are named after the scenario *and* the
 controller, so runs of several controllers into one folder keep every file (the eddy
 CSV used to be named after the scenario only); an eddy-brake run's metrics use every
 step (they used to be computed on the series thinned to ``record_every``).
@@ -69,6 +69,7 @@ def test_eddy_controllers_into_one_folder_keep_their_own_csv(capsys, short_eddy_
     assert sorted(p.name for p in out.iterdir()) == sorted(p.name for p in written.values())
 
 
+@pytest.mark.slow
 def test_braking_controllers_into_one_folder_keep_their_own_files(capsys, tmp_path):
     out = tmp_path / "out"
     scenario = str(EXAMPLES / "paper000_smarc_ep.toml")

@@ -40,3 +40,33 @@ def test_a_running_scheduler_gives_a_client_that_runs_work_and_is_closed_after()
         with dask_client(cluster.scheduler_address) as client:
             assert client.submit(pow, 3, 4).result(timeout=60) == 81
         assert client.status == "closed"
+
+
+CALLS = [(2, 3), (3, 2), (5, 0), (7, 1)]
+
+
+def test_fan_out_on_this_machine_gives_each_call_its_own_result() -> None:
+    from railpilot.cluster import fan_out
+
+    done = list(fan_out(pow, CALLS))
+    assert sorted(k for k, _ in done) == list(range(len(CALLS)))
+    assert dict(done) == {k: pow(*call) for k, call in enumerate(CALLS)}
+    assert list(fan_out(pow, [])) == []
+
+
+def test_fan_out_on_a_cluster_gives_what_this_machine_gives() -> None:
+    from railpilot.cluster import fan_out
+
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=2, processes=False, dashboard_address=None
+    ) as cluster:
+        done = dict(fan_out(pow, CALLS, cluster.scheduler_address))
+    assert done == dict(fan_out(pow, CALLS))
+
+
+def test_fan_out_names_the_option_for_a_bad_scheduler() -> None:
+    from railpilot.cluster import fan_out
+
+    with pytest.raises(ConfigError) as info:
+        list(fan_out(pow, CALLS, "no-port", option="--cluster"))
+    assert info.value.field == "--cluster"

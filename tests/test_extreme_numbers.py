@@ -27,8 +27,8 @@ from typing import Any
 import pytest
 
 from link.helpers import KEY_FILE
-from railpilot.cosim.scenario import load_scenario as load_line_run
-from railpilot.cosim.scenario import scenario_from_mapping as line_run_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping as line_run_from_mapping
+from railpilot.cosim.scenario import load_line_scenario as load_line_run
 from railpilot.eddy.scenario import EddyScenario
 from railpilot.errors import RailpilotError
 from railpilot.line.loader import line_from_mapping, parse_line

@@ -1,13 +1,16 @@
 """The package has no import cycles: not between modules, not between sub-packages.
 
-Read from the source (top-level ``import`` statements only: an import inside a function,
-or under ``if TYPE_CHECKING``, runs later or never and cannot make a cycle at import
-time). Issue 9 found two (scenario <-> sim, report <-> reproduce).
+Read from the source. Two graphs: the imports that run when a module is imported (the
+module's top level), and every import, those inside functions included (they run later,
+but a module that imports its importer at call time still belongs on the same layer, and
+the dependency is as real). Imports under ``if TYPE_CHECKING:`` never run and are not
+counted.
 """
 
 from __future__ import annotations
 
 import ast
+from collections.abc import Iterator
 from pathlib import Path
 
 SRC = Path(__file__).resolve().parents[1] / "src"
@@ -19,22 +22,44 @@ def _module_name(path: Path) -> str:
     return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
 
 
-def _graph() -> dict[str, set[str]]:
+def _is_type_checking(test: ast.expr) -> bool:
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def _imports(tree: ast.Module, *, in_functions: bool) -> Iterator[ast.Import | ast.ImportFrom]:
+    """The import statements of a module: its top level only, or every one (inside
+    functions, classes, try blocks ...) but those under ``if TYPE_CHECKING:``."""
+    if not in_functions:
+        yield from (n for n in tree.body if isinstance(n, ast.Import | ast.ImportFrom))
+        return
+    todo: list[ast.AST] = [tree]
+    while todo:
+        node = todo.pop()
+        if isinstance(node, ast.Import | ast.ImportFrom):
+            yield node
+        elif isinstance(node, ast.If) and _is_type_checking(node.test):
+            todo.extend(node.orelse)  # the else branch does run
+        else:
+            todo.extend(ast.iter_child_nodes(node))
+
+
+def _graph(*, in_functions: bool = False) -> dict[str, set[str]]:
     modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
     graph: dict[str, set[str]] = {m: set() for m in modules}
     for name, path in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        for node in ast.parse(path.read_text()).body:
+        tree = ast.parse(path.read_text())
+        for node in _imports(tree, in_functions=in_functions):
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
-            elif isinstance(node, ast.ImportFrom):
+            else:
                 base = node.module or ""
                 if node.level:
                     up = package.split(".")[: len(package.split(".")) - node.level + 1]
                     base = ".".join(up) + (f".{node.module}" if node.module else "")
                 targets = [base] + [f"{base}.{a.name}" for a in node.names]
-            else:
-                continue
             graph[name] |= {t for t in targets if t in modules and t != name}
     return graph
 
@@ -66,27 +91,67 @@ def _subpackage(module: str) -> str:
     return ".".join(module.split(".")[:2])
 
 
+def _subpackages(graph: dict[str, set[str]]) -> dict[str, set[str]]:
+    packages: dict[str, set[str]] = {}
+    for module, targets in graph.items():
+        mine = _subpackage(module)
+        packages.setdefault(mine, set()).update(
+            _subpackage(t) for t in targets if _subpackage(t) != mine
+        )
+    return packages
+
+
 def test_no_module_imports_itself_through_others() -> None:
     assert _cycle(_graph()) is None
 
 
 def test_no_subpackage_imports_itself_through_others() -> None:
-    packages: dict[str, set[str]] = {}
-    for module, targets in _graph().items():
-        mine = _subpackage(module)
-        packages.setdefault(mine, set()).update(
-            _subpackage(t) for t in targets if _subpackage(t) != mine
-        )
-    assert _cycle(packages) is None
+    assert _cycle(_subpackages(_graph())) is None
+
+
+def test_no_module_cycle_counting_imports_inside_functions() -> None:
+    assert _cycle(_graph(in_functions=True)) is None
+
+
+def test_no_subpackage_cycle_counting_imports_inside_functions() -> None:
+    assert _cycle(_subpackages(_graph(in_functions=True))) is None
+
+
+def test_the_graph_sees_imports_inside_functions_but_not_type_checking_ones() -> None:
+    """The reader itself: a call-time import counts, a TYPE_CHECKING one does not."""
+    tree = ast.parse(
+        "from typing import TYPE_CHECKING\n"
+        "if TYPE_CHECKING:\n    import typing_only\nelse:\n    import at_run_time\n"
+        "def f():\n    import in_function\n"
+        "class C:\n    def g(self):\n        from pkg import in_method\n"
+    )
+    top = {a.name for n in _imports(tree, in_functions=False) for a in n.names}
+    every = {a.name for n in _imports(tree, in_functions=True) for a in n.names}
+    assert top == {"TYPE_CHECKING"}
+    assert every == {"TYPE_CHECKING", "at_run_time", "in_function", "in_method"}
 
 
 def test_the_simulator_does_not_import_the_scenario_package() -> None:
-    graph = _graph()
+    graph = _graph(in_functions=True)
     offenders = {
         (m, t)
         for m, targets in graph.items()
         if m.startswith("railpilot.sim")
         for t in targets
         if t.startswith("railpilot.scenario")
+    }
+    assert offenders == set()
+
+
+def test_only_the_command_line_runs_the_rigs() -> None:
+    """Test and benchmark rigs (railpilot.rigs) stay out of the library's import graph:
+    the command that runs them imports them, nothing else in the package does."""
+    graph = _graph(in_functions=True)
+    offenders = {
+        (m, t)
+        for m, targets in graph.items()
+        if not m.startswith("railpilot.rigs") and m != "railpilot.commands.link"
+        for t in targets
+        if t.startswith("railpilot.rigs")
     }
     assert offenders == set()

@@ -65,6 +65,7 @@ def _run(tmp_path: Path, mode: str) -> dict[str, float]:
     return run_python_json(CHILD, str(tmp_path), mode, env={"PYTHONDONTWRITEBYTECODE": "1"})
 
 
+@pytest.mark.slow
 def test_numba_alone_loads_the_old_code_after_an_edit_to_an_inlined_module(
     tmp_path: Path,
 ) -> None:
@@ -76,6 +77,7 @@ def test_numba_alone_loads_the_old_code_after_an_edit_to_an_inlined_module(
     assert _run(tmp_path, "plain")["value"] == 4.0  # stale: GAIN * (1 + 1)
 
 
+@pytest.mark.slow
 def test_a_watched_kernel_compiles_again_after_an_edit_to_an_inlined_module(
     tmp_path: Path,
 ) -> None:
@@ -87,6 +89,7 @@ def test_a_watched_kernel_compiles_again_after_an_edit_to_an_inlined_module(
     assert _run(tmp_path, "watched") == {"value": 22.0, "hits": 1, "misses": 0}
 
 
+@pytest.mark.slow
 def test_a_watched_kernel_compiles_again_after_an_edit_to_a_constant_it_reads(
     tmp_path: Path,
 ) -> None:

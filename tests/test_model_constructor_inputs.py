@@ -17,7 +17,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from bad_values import BAD
+from bad_values import BAD, every_bad_value
 from railpilot.brakes.base import PackContext
 from railpilot.brakes.brake_pipe import BrakePipeBrake
 from railpilot.brakes.ep_blend import EPBrake
@@ -34,7 +34,7 @@ from railpilot.eddy.train import TrainParams
 from railpilot.errors import ConfigError
 from railpilot.vehicle.consist import Consist, Vehicle
 from railpilot.vehicle.coupler import DraftGear
-from railpilot.vehicle.line import Line, Segment, Station
+from railpilot.vehicle.line import Line, Segment, StopPoint
 from railpilot.vehicle.traction import (
     Locomotive,
     RegenEnvelope,
@@ -55,7 +55,7 @@ BASE: dict[type, dict[str, object]] = {
     PackContext: {"dt_s": 0.01, "load_weighed_eff_mass_kg": 5e5, "train": Train()},
     # vehicle
     Segment: {"start_m": 0.0, "end_m": 100.0, "value": 1.0},
-    Station: {"name": "A", "stop_m": 100.0},
+    StopPoint: {"name": "A", "stop_m": 100.0},
     Line: {},
     TractionEnvelope: {"max_force_n": 1e5, "max_power_w": 1e6},
     RegenEnvelope: {"max_force_n": 1e5, "max_power_w": 1e6},
@@ -91,6 +91,7 @@ NOT_CHECKED: dict[str, str] = {
     "ResistanceTable": "an output (a NamedTuple of computed arrays)",
     "StepMetrics": "an output (a run's metrics, nan where undefined)",
     "EddyResult": "an output (a run's time series)",
+    "EddyScenarioFile": "a file format's model (tests/eddy/test_scenario.py checks its errors)",
 }
 
 
@@ -110,9 +111,9 @@ ALLOWED: set[tuple[type, str, str]] = {
     # a segment takes any number; the line then names a non-finite or backwards one by
     # its place (line.gradients[3]), as tests/vehicle/test_line.py checks
     *((Segment, end, v) for end in _ENDS for v in ("nan", "inf", "-inf", "-1e300")),
-    (Station, "stop_m", "-1e300"),
+    (StopPoint, "stop_m", "-1e300"),
     # names are any string
-    *((cls, "name", v) for cls in (Station, Locomotive, EddyScenario) for v in _NAMES),
+    *((cls, "name", v) for cls in (StopPoint, Locomotive, EddyScenario) for v in _NAMES),
     # a vehicle's, a consist's and a draft gear's name is any non-empty string
     *((cls, "name", "str") for cls in (Vehicle, Consist, DraftGear)),
     (TorqueTable, "source", "str"),
@@ -129,9 +130,9 @@ SHAPED: set[tuple[type, str, str]] = {
 
 #: (class, argument) the class takes as given and the object holding it checks, naming
 #: the item's place: a station's stop point (tests/line/test_queries.py compares a
-#: Station built with pytest.approx)
+#: StopPoint built with pytest.approx)
 HELD: dict[tuple[type, str], Callable[[object], object]] = {
-    (Station, "stop_m"): lambda station: Line(stations=(Station("A", 1.0), station)),
+    (StopPoint, "stop_m"): lambda station: Line(stations=(StopPoint("A", 1.0), station)),
 }
 
 
@@ -153,19 +154,22 @@ def _default(cls: type, name: str) -> object:
     return inspect.signature(cls).parameters[name].default
 
 
+#: (class, argument, kind of bad value) the argument refuses: every pair but the allowed
+#: and the shaped
 CASES = [
-    pytest.param(cls, name, value, id=f"{cls.__name__}-{name}-{value_id}")
+    (cls, name, kind)
     for cls in BASE
     for name in _arguments(cls)
-    for value_id, value in BAD
-    if (cls, name, value_id) not in ALLOWED | SHAPED
+    for kind, value in BAD
+    if (cls, name, kind) not in ALLOWED | SHAPED
     # None is what an optional argument defaults to (application_time_s, max_speed_mps)
     and not (value is None and _default(cls, name) is None)
 ]
 
 
-@pytest.mark.parametrize(("cls", "name", "value"), CASES)
-def test_bad_argument_gets_a_short_config_error_naming_it(cls, name, value):
+@every_bad_value(CASES)
+def test_bad_argument_gets_a_short_config_error_naming_it(case, value):
+    cls, name, _ = case
     with pytest.raises(ValueError) as info:
         _build(cls, name, value)
     message = str(info.value)
@@ -242,11 +246,11 @@ EDGES: list[tuple[type, dict[str, object]]] = [
     (Locomotive, {"mass_kg": np.int64(200_000), "traction_efficiency": 1, "regen_efficiency": 1.0}),
     (Segment, {"start_m": np.float64(-5.0), "end_m": np.int64(5), "value": np.float32(-3.0)}),
     (Segment, {"start_m": -1e300, "end_m": 1e300, "value": math.nan}),
-    (Station, {"stop_m": np.float64(-3.5)}),
-    (Station, {"name": "", "stop_m": 0}),
+    (StopPoint, {"stop_m": np.float64(-3.5)}),
+    (StopPoint, {"name": "", "stop_m": 0}),
     (Line, {"gradients": [Segment(0, 1, 2)], "curves": (Segment(0, 1, 300.0),)}),
-    (Line, {"speed_limits": (Segment(0.0, 1.0, 20.0),), "stations": (Station("A", 1.0),)}),
-    (Line, {"stations": [Station("A", 1.0), Station("B", 2.0)]}),
+    (Line, {"speed_limits": (Segment(0.0, 1.0, 20.0),), "stations": (StopPoint("A", 1.0),)}),
+    (Line, {"stations": [StopPoint("A", 1.0), StopPoint("B", 2.0)]}),
     (CoilParams, {"reference_lead_a": math.inf, "freewheel_voltage_v": 0}),
     (CoilParams, {"resistance_ohm": np.float64(0.6), "inductance_h": np.int64(1)}),
     (EddyBrakeParams, {"turns": np.int64(12), "pole_pairs": 4, "air_gap_m": np.float32(0.004)}),
@@ -279,9 +283,9 @@ def test_a_segment_out_of_range_is_named_by_its_place_in_the_line():
 
 
 def test_a_station_s_stop_point_is_named_by_its_place_in_the_line():
-    Station("S", pytest.approx(2650.0))  # as tests/line/test_queries.py compares one
+    StopPoint("S", pytest.approx(2650.0))  # as tests/line/test_queries.py compares one
     with pytest.raises(ConfigError) as info:
-        Line(stations=[Station("A", 0.0), Station("B", "x")])  # type: ignore[arg-type]
+        Line(stations=[StopPoint("A", 0.0), StopPoint("B", "x")])  # type: ignore[arg-type]
     assert info.value.field == "line.stations[1].stop_m"
 
 

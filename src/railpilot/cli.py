@@ -16,6 +16,7 @@ from collections.abc import Sequence
 
 from railpilot import __version__
 from railpilot.errors import RailpilotError
+from railpilot.extras import extra_of, install_hint
 
 #: Modules that add subcommands; each has ``register(subparsers) -> None`` and sets
 #: ``func`` on its parsers via ``set_defaults(func=...)``. ``func(args) -> int``.
@@ -27,6 +28,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.link",
     "railpilot.commands.drive",
     "railpilot.commands.line",
+    "railpilot.commands.schema",
 )
 
 
@@ -50,6 +52,18 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except RailpilotError as exc:
         print(f"railpilot: error: {exc}", file=sys.stderr)
+        return 2
+    except ModuleNotFoundError as exc:
+        # An optional part a command reached without checking for it first: say which
+        # extra installs it rather than show a traceback.
+        extra = extra_of(exc)
+        if extra is None:
+            raise
+        print(
+            f"railpilot: error: this needs railpilot's '{extra}' extra ({exc}): "
+            f"{install_hint(extra)}",
+            file=sys.stderr,
+        )
         return 2
     except KeyboardInterrupt:
         print("railpilot: interrupted", file=sys.stderr)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 import sys
 import tomllib
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -24,7 +25,7 @@ def read_text(
     path: str | os.PathLike[str],
     field: str,
     what: str,
-    error: type[ConfigError] = ConfigError,
+    error: Callable[[str, Any, str], ConfigError] = ConfigError,
 ) -> str:
     """The UTF-8 text of the file at ``path``; ``what`` names the kind of file in the
     error ("line-run file")."""

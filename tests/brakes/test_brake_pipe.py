@@ -1,4 +1,4 @@
-"""Heavy-haul brake-pipe brake (railpilot.brakes.brake_pipe), issue 9 item 6.
+"""Heavy-haul brake-pipe brake (railpilot.brakes.brake_pipe).
 
 Each test drives the compiled step ``brake_pipe_ato_step`` through ``BrakePipeBrake.pack``
 with a held or scripted command, so only the brake is under test (no train motion, no
@@ -231,6 +231,7 @@ def test_any_rising_command_is_the_superposition_of_analytic_steps(
 
 @pytest.mark.parametrize("n_segments", [2, 40])
 @pytest.mark.parametrize("pipe", [{}, IDEAL_PIPE], ids=["pipe", "ideal-pipe"])
+@pytest.mark.slow
 def test_equivalent_time_is_the_integral_of_the_missing_force(n_segments, pipe):
     # T_e = integral (1 - F) dt, by quadrature of the closed-form force
     brake = BrakePipeBrake(n_segments=n_segments, **pipe)
@@ -311,6 +312,7 @@ def pipe_step_response_numerical(length_m, valve_flow_mps, diffusivity_m2ps, t_e
     ("valve_flow_mps", "diffusivity_m2ps"),
     [(141.0, 21_900.0), (60.0, 50_000.0), (400.0, 8_000.0)],
 )
+@pytest.mark.slow
 def test_pipe_moments_match_a_numerical_solution_of_the_pipe(valve_flow_mps, diffusivity_m2ps):
     length = 1600.0
     t, x, r = pipe_step_response_numerical(length, valve_flow_mps, diffusivity_m2ps, 3000.0)

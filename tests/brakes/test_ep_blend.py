@@ -160,7 +160,7 @@ def test_bad_parameter_raises_config_error_naming_it(name, value):
     assert info.value.field == f"brake.{name}"
 
 
-# --- speeding back above the changeover speed (issue 9 item 7a) -------------------------
+# --- speeding back above the changeover speed -------------------------
 #
 # A train that falls below the changeover speed and then speeds back up (a down-grade)
 # must get its electric brake back as a ramp, and the next fall must be a new fade with

@@ -364,6 +364,7 @@ def _explicit_pipe(x, ell, k, consts, er_apply, t_release, t_end, h, every):
     return out_bp, out_bc
 
 
+@pytest.mark.slow
 def test_the_implicit_pipe_agrees_with_a_fine_explicit_solution():
     """A full service held 100 s, then a release for 100 s, quick service off, on the
     1,330 m train (every vehicle braked), at dt = 0.05 s, against the same pipe solved

@@ -1,4 +1,4 @@
-"""Locomotive drive of a heavy-haul train (railpilot.brakes.locomotive_drive), issue 9.
+"""Locomotive drive of a heavy-haul train (railpilot.brakes.locomotive_drive).
 
 Each test drives the compiled step ``locomotive_drive_ato_step`` through
 ``LocomotiveDrive.pack`` with a held or scripted command at a held speed, so only the
@@ -189,6 +189,7 @@ def test_braking_within_the_regen_envelope_is_all_regeneration():
     assert_allclose(reported, braking, rtol=1e-15)
 
 
+@pytest.mark.slow
 def test_braking_above_the_regen_envelope_blends_in_the_air_brake():
     # 0.1 m/s^2 brakes with 1,081.2 kN; regen gives its 461 kN, the brake pipe the other
     # 620.2 kN (a command of 0.0574 m/s^2 of its 0.5 m/s^2), building up along the train

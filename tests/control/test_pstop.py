@@ -466,6 +466,7 @@ def test_simulator_tells_it_the_reference_stop_and_the_ato_brake_model():
     assert_allclose(ctrl.params[[P_SIGMA, P_TAU]], (4.1, 6.0), rtol=1e-12)
 
 
+@pytest.mark.slow
 def test_heavy_haul_stop_within_2_m():
     # the heavy-haul target: 10,000 t, brake 4 s late with a 6 s lag
     error = simulate(heavy_haul_scenario(), "pstop").metrics["stop_error_m"]

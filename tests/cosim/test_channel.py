@@ -12,6 +12,7 @@ from scipy import stats
 
 from railpilot.cosim.channel import ChannelModel, DeadZone, Outage, RadioChannel
 from railpilot.errors import ConfigError
+from railpilot.schema.channel import ChannelFileTable
 
 
 def send_many(channel: RadioChannel, n: int, *, dt_s: float = 1.0, position_m: float = 0.0):  # type: ignore[no-untyped-def]
@@ -106,3 +107,49 @@ def test_a_table_builds_the_model() -> None:
     assert model == ChannelModel(
         loss=0.3, dead_zones=(DeadZone(120, 125),), outages=(Outage(600, 660),)
     )
+
+
+def test_the_file_formats_defaults_are_the_models() -> None:
+    """A [channel] table that leaves a number out gets the model's default, and the JSON
+    Schema shows that same default."""
+    defaults = ChannelModel()
+    for key in ("latency_min_s", "latency_median_s", "latency_sigma", "loss"):
+        assert ChannelFileTable.model_fields[key].default == getattr(defaults, key), key
+    assert ChannelModel.from_mapping({}) == defaults
+
+
+@pytest.mark.parametrize(
+    ("table", "field", "value", "allowed"),
+    [
+        (
+            {"dead_zones": [{"start_km": 5}]},
+            "channel.dead_zones[0]",
+            {"start_km": 5},
+            "a table with end_km",
+        ),
+        ({"outages": [{}]}, "channel.outages[0]", {}, "a table with end_s, start_s"),
+        ({"outages": [3]}, "channel.outages[0]", 3, "a table"),
+        ({"outages": {"start_s": 1}}, "channel.outages", {"start_s": 1}, "a list of tables"),
+        ({"loss": True}, "channel.loss", True, "a probability 0..0.99"),
+        ({"latency_min_s": 11}, "channel.latency_min_s", 11, "0..10 s"),
+        ({"latency_sigma": "x"}, "channel.latency_sigma", "x", "0..3"),
+        (
+            {"dead_zones": [{"start_km": -1, "end_km": 2}]},
+            "channel.dead_zones[0].start_km",
+            -1,
+            "a km post >= 0",
+        ),
+        (
+            {"zz": 1, "aa": 2},
+            "channel.zz",
+            1,
+            "one of dead_zones, latency_median_s, latency_min_s, latency_sigma, loss, outages",
+        ),
+    ],
+)
+def test_a_bad_channel_table_names_the_value_and_what_is_allowed(
+    table: dict, field: str, value: object, allowed: str
+) -> None:
+    with pytest.raises(ConfigError) as info:
+        ChannelModel.from_mapping(table)
+    assert (info.value.field, info.value.value, info.value.allowed) == (field, value, allowed)

@@ -17,7 +17,10 @@ from railpilot.cosim.export import (
     trace_table,
 )
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import scenario_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping
+
+# a line day, exported
+pytestmark = pytest.mark.slow
 
 #: two trains, a TSR and a re-timing's cause (a train standing), within an hour and a half
 SCENARIO = {
@@ -53,7 +56,7 @@ SCENARIO = {
 
 @pytest.fixture(scope="module")
 def run():  # type: ignore[no-untyped-def]
-    return run_line(scenario_from_mapping(SCENARIO))
+    return run_line(line_scenario_from_mapping(SCENARIO))
 
 
 def test_the_trace_is_the_trackside_samples_in_km_and_kmh(run) -> None:  # type: ignore[no-untyped-def]

@@ -10,8 +10,11 @@ from __future__ import annotations
 import pytest
 
 from railpilot.cosim.knock_on import knock_on
-from railpilot.cosim.scenario import scenario_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping
 from railpilot.errors import ConfigError
+
+# line days with and without a failed train
+pytestmark = pytest.mark.slow
 
 STAND_S = 360.0
 DAY = {
@@ -49,7 +52,7 @@ DAY = {
 
 @pytest.fixture(scope="module")
 def failure() -> dict:
-    return knock_on(scenario_from_mapping(DAY), 2).summary()
+    return knock_on(line_scenario_from_mapping(DAY), 2).summary()
 
 
 def test_the_failed_train_is_later_by_about_its_stand(failure: dict) -> None:
@@ -82,7 +85,7 @@ def test_the_day_without_the_event_has_no_failure(failure: dict) -> None:
 @pytest.mark.parametrize("index", [0, 3, -1, True, 1.5])
 def test_an_event_number_outside_the_file_is_refused_naming_it(index: object) -> None:
     with pytest.raises(ConfigError) as err:
-        knock_on(scenario_from_mapping(DAY), index)  # type: ignore[arg-type]
+        knock_on(line_scenario_from_mapping(DAY), index)  # type: ignore[arg-type]
     assert err.value.field == "event" and "1..2" in str(err.value)
 
 
@@ -95,7 +98,7 @@ def test_a_day_cut_short_is_compared_at_the_last_stop_both_days_reached() -> Non
 
     with_event = day([10.0, 50.0, None], 120.0)  # the failure: the last stop not reached
     without = day([10.0, 20.0, 30.0], 100.0)
-    out = summary(scenario_from_mapping(DAY), 1, with_event, without)
+    out = summary(line_scenario_from_mapping(DAY), 1, with_event, without)
     row = out["trains"]["101"]
     assert row["arrival_delay_s"] == {"with": 50.0, "without": 20.0, "knock_on": 30.0}
     assert row["knock_on_by_station_s"] == [0.0, 30.0, None]

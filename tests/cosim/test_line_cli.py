@@ -8,11 +8,13 @@ import io
 import json
 import re
 
-import numpy as np
 import pytest
 
 from railpilot.cli import main
-from railpilot.commands.line import SWEPT, _dig, _quantile
+from railpilot.cosim.kpis import dig as _dig
+from railpilot.cosim.kpis import swept
+
+SWEPT = swept()
 
 TINY = """
 name = "tiny"
@@ -29,6 +31,7 @@ first_id = 101
 """
 
 
+@pytest.mark.slow
 def test_simulate_prints_the_kpis(tmp_path, capsys):
     path = tmp_path / "tiny.toml"
     path.write_text(TINY)
@@ -128,16 +131,17 @@ def test_line_run_refuses_bad_arguments_before_starting_anything(
     assert not (tmp_path / "x.png").exists()
 
 
+@pytest.mark.slow
 def test_line_run_writes_the_runs_files_as_simulate_does(tmp_path, capsys, monkeypatch):
     # the live run itself is tests/cosim/test_live.py's; here, what the command does with
     # the LineResult it returns (a co-simulated one stands in for it)
     import railpilot.cosim.live as live
     from railpilot.cosim.line_run import run_line
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
     path = tmp_path / "tiny.toml"
     path.write_text(TINY)
-    result = run_line(load_scenario(path))
+    result = run_line(load_line_scenario(path))
     monkeypatch.setattr(live, "run_live", lambda *args, **kwargs: result)
     folder = tmp_path / "live"
     assert main(["line", "run", str(path), "--json", "--out", str(folder)]) == 0
@@ -157,13 +161,13 @@ def test_line_run_writes_the_runs_files_as_simulate_does(tmp_path, capsys, monke
 @pytest.mark.parametrize("seed", [-1, 2**63, True, 1.0])
 def test_live_options_refuse_a_seed_out_of_range(tmp_path, seed):
     from railpilot.cosim.live import LiveOptions
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
     from railpilot.errors import ConfigError
 
     path = tmp_path / "tiny.toml"
     path.write_text(TINY)
     with pytest.raises(ConfigError, match=r"^seed = .* a seed in \[0, 9223372036854775807\]"):
-        LiveOptions(seed=seed).check(load_scenario(path))
+        LiveOptions(seed=seed).check(load_line_scenario(path))
 
 
 @pytest.mark.parametrize("name", ["a_dir", "latin1.toml"])
@@ -182,12 +186,6 @@ def test_a_bad_file_is_refused_naming_the_field(tmp_path, capsys):
     assert main(["line", "simulate", str(path), "--json"]) == 2
     captured = capsys.readouterr()
     assert "services[0].kind" in captured.err and captured.out == ""
-
-
-def test_quantiles_are_numpys():
-    values = sorted(np.random.default_rng(1).normal(size=37).tolist())
-    for q in (0.05, 0.5, 0.95):
-        assert _quantile(values, q) == pytest.approx(np.quantile(values, q), abs=1e-4)
 
 
 # --- sweeps -----------------------------------------------------------------------------
@@ -230,6 +228,7 @@ def _check_sweep(out, runs):
     assert out["runs_with_overspeeds"] == sum(1 for r in runs.values() if r["overspeeds"])
 
 
+@pytest.mark.slow
 def test_a_sweep_summarises_the_runs_it_would_give_one_by_one(tiny_runs, capsys):
     path, runs = tiny_runs
     assert main(["line", "simulate", str(path), "--runs", "3", "--seed", "5", "--json"]) == 0
@@ -241,6 +240,7 @@ def test_a_sweep_summarises_the_runs_it_would_give_one_by_one(tiny_runs, capsys)
     assert re.fullmatch(r"seed \d: \d+ TSR violations, .* \(3/3, \d+ s\)", progress[-1])
 
 
+@pytest.mark.slow
 def test_a_sweep_with_out_writes_each_seeds_kpis_and_what_it_printed(tiny_runs, tmp_path, capsys):
     path, runs = tiny_runs
     folder = tmp_path / "sweep"  # not there yet: made
@@ -269,6 +269,7 @@ def test_a_sweep_with_out_writes_each_seeds_kpis_and_what_it_printed(tiny_runs, 
     assert rows[0]["link.connects"] != rows[1]["link.connects"]
 
 
+@pytest.mark.slow
 def test_a_sweep_on_a_dask_cluster_gives_the_same_summary(tiny_runs, capsys):
     distributed = pytest.importorskip("dask.distributed")
     path, runs = tiny_runs
@@ -296,6 +297,7 @@ def test_knock_on_refuses_bad_arguments_before_running(tmp_path, capsys, args, f
     assert f"{field} = " in err and "Traceback" not in err
 
 
+@pytest.mark.slow
 def test_knock_on_prints_each_trains_difference(tmp_path, capsys):
     path = tmp_path / "tiny.toml"
     path.write_text(

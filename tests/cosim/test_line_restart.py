@@ -1,4 +1,4 @@
-"""A ground restart mid-run on the whole line (issue 12): the co-simulated ground keeps its
+"""A ground restart mid-run on the whole line: the co-simulated ground keeps its
 TSRs, deliveries and audit log in its store as the live ground does
 (ground/journal.py), is killed as ``kill -9`` would kill it, and starts again from the
 store alone. Nothing is lost and nothing is applied twice: asserted from the store's audit
@@ -14,11 +14,14 @@ from collections import Counter
 import pytest
 
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import scenario_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping
 from railpilot.errors import ScenarioError
 from railpilot.link import TsrState
 
 from .test_line_run import BASE
+
+# line days with a ground restart
+pytestmark = pytest.mark.slow
 
 RESTART = copy.deepcopy(BASE)
 RESTART["events"] = [
@@ -52,7 +55,7 @@ RESTART["events"] = [
 
 @pytest.fixture(scope="module")
 def restarted():
-    return run_line(scenario_from_mapping(RESTART))
+    return run_line(line_scenario_from_mapping(RESTART))
 
 
 def test_the_ground_went_down_with_a_delivery_pending(restarted):
@@ -127,7 +130,7 @@ def test_a_restart_needs_a_store_and_a_running_ground():
     mapping = copy.deepcopy(RESTART)
     mapping["events"] = [{"at_min": 1.0, "op": "ground_restart", "down_min": -1.0}]
     with pytest.raises(ScenarioError, match=r"events\[0\]\.down_min"):
-        scenario_from_mapping(mapping)
+        line_scenario_from_mapping(mapping)
     mapping["events"] = [{"at_min": 1.0, "op": "ground_restart", "down_minutes": 1.0}]
     with pytest.raises(ScenarioError, match="down_minutes"):
-        scenario_from_mapping(mapping)
+        line_scenario_from_mapping(mapping)

@@ -1,4 +1,4 @@
-"""Re-timing in the loop on a line (issue 12 item 3; ground/retimer.py, cosim/driver.py).
+"""Re-timing in the loop on a line (ground/online_retimer.py, cosim/driver.py).
 
 Two loaded trains from Shenchi South (1) to station 4, fifteen minutes apart; the first
 fails twelve minutes in and stands ten minutes. The same day is run with the ground
@@ -16,7 +16,10 @@ from __future__ import annotations
 import pytest
 
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import scenario_from_mapping
+from railpilot.cosim.scenario import line_scenario_from_mapping
+
+# whole line days with a failed train, re-timed and not
+pytestmark = pytest.mark.slow
 
 DAY = {
     "name": "a failure and re-timing",
@@ -41,12 +44,12 @@ FAILED = 101
 
 @pytest.fixture(scope="module")
 def retimed():
-    return run_line(scenario_from_mapping(DAY))
+    return run_line(line_scenario_from_mapping(DAY))
 
 
 @pytest.fixture(scope="module")
 def fixed():
-    return run_line(scenario_from_mapping(DAY | {"retiming": {"enabled": False}}))
+    return run_line(line_scenario_from_mapping(DAY | {"retiming": {"enabled": False}}))
 
 
 def test_the_ground_retimes_the_failed_train_and_the_one_behind(retimed):

@@ -18,12 +18,15 @@ import pytest
 from numpy.testing import assert_allclose
 
 from railpilot.cosim.driver import TrainDriver
-from railpilot.cosim.line_run import line_train, run_line
-from railpilot.cosim.scenario import load_scenario, scenario_from_mapping
+from railpilot.cosim.line_run import Overspeed, line_train, run_line
+from railpilot.cosim.scenario import line_scenario_from_mapping, load_line_scenario
 from railpilot.cosim.trackside import OVERSPEED_TOLERANCE_MPS, TrainShape, static_limit_under
 from railpilot.errors import ConfigError
 from railpilot.link import TravelDirection
 from railpilot.onboard.drive import drive, heavy_haul_loaded, train_preset
+
+# whole line days, co-simulated
+pytestmark = pytest.mark.slow
 
 BASE = {
     "name": "test day",
@@ -59,7 +62,7 @@ BASE = {
 
 @pytest.fixture(scope="module")
 def day():
-    return scenario_from_mapping(BASE)
+    return line_scenario_from_mapping(BASE)
 
 
 @pytest.fixture(scope="module")
@@ -157,11 +160,10 @@ def test_the_static_limits_are_checked_where_the_trains_reach_them(day, baseline
 
 
 def test_the_kpis_count_the_spells_and_the_worst_excess(advised):
-    spells = [
-        {"train": 101, "excess_kmh": 1.5},
-        {"train": 101, "excess_kmh": 4.0},
-        {"train": 102, "excess_kmh": 0.5},
-    ]
+    def spell(train: int, excess_kmh: float) -> Overspeed:
+        return Overspeed(train, 0.0, 1.0, 0.0, 10.0, 80.0 + excess_kmh, 80.0, excess_kmh)
+
+    spells = [spell(101, 1.5), spell(101, 4.0), spell(102, 0.5)]
     kpis = dataclasses.replace(advised, overspeeds=spells).kpis(baseline=advised)
     assert kpis["overspeeds"] == 3
     assert kpis["max_overspeed_kmh"] == 4.0
@@ -174,7 +176,7 @@ def test_the_kpis_count_the_spells_and_the_worst_excess(advised):
 def test_one_station_pair_is_driven_as_railpilot_drive_does():
     """The co-simulation's driver and ``railpilot drive`` put the same planned curve on
     the same simulation core: with nothing received on the way, the same run."""
-    scenario = scenario_from_mapping(
+    scenario = line_scenario_from_mapping(
         BASE
         | {
             "channel": {},
@@ -197,7 +199,7 @@ def test_one_station_pair_is_driven_as_railpilot_drive_does():
 
 def test_the_examples_load():
     for name in ("examples/line_short_day.toml", "examples/heavy_haul_day.toml"):
-        scenario = load_scenario(name)
+        scenario = load_line_scenario(name)
         assert scenario.services and scenario.channel.loss == 0.3
         for service in scenario.services:
             stops = service.stops
@@ -233,7 +235,7 @@ def test_the_examples_load():
 )
 def test_bad_scenarios_are_refused_naming_the_field(change, field):
     with pytest.raises(ConfigError) as caught:
-        scenario_from_mapping(BASE | change)
+        line_scenario_from_mapping(BASE | change)
     assert caught.value.field == field
 
 
@@ -252,18 +254,18 @@ def test_bad_scenarios_are_refused_naming_the_field(change, field):
 def test_a_bad_event_is_refused_in_one_plain_sentence(event, message):
     bad = {k: v for k, v in (BASE["events"][0] | event).items() if v is not None}
     with pytest.raises(ConfigError) as caught:
-        scenario_from_mapping(BASE | {"events": [bad]})
+        line_scenario_from_mapping(BASE | {"events": [bad]})
     assert message in str(caught.value)
     assert str(caught.value).count("is not allowed") <= 1
 
 
 def test_a_missing_file_is_refused(tmp_path):
     with pytest.raises(ConfigError, match="SCENARIO"):
-        load_scenario(tmp_path / "nope.toml")
+        load_line_scenario(tmp_path / "nope.toml")
     bad = tmp_path / "bad.toml"
     bad.write_text("name = [")
     with pytest.raises(ConfigError, match="valid TOML"):
-        load_scenario(bad)
+        load_line_scenario(bad)
 
 
 def test_a_driver_is_a_mover(day):
@@ -284,7 +286,7 @@ def test_a_tsr_valid_later_is_obeyed_when_it_starts():
     """A TSR set at 4 min valid from 14 min: the trains reach km 14-17 after it starts and
     must be under its limit there, though nothing happens on the link at its start."""
     later = BASE["events"][0] | {"valid_from_min": 10, "valid_until_min": 80}
-    result = run_line(scenario_from_mapping(BASE | {"events": [later]}))
+    result = run_line(line_scenario_from_mapping(BASE | {"events": [later]}))
     assert result.kpis()["tsr_violations"] == 0, result.tsr_violations
     assert all(sessions == {1: 1} for sessions in result.tsr_applied.values())
 
@@ -294,7 +296,7 @@ def test_a_train_brought_to_rest_after_its_red_cleared_goes_on():
     # red clears at 4805 s while it is still braking, and the air brake, releasing,
     # brings it to rest 84 m on. Nothing held it there, yet it stood 39 min, until the
     # next change of what it knew (the TSR's expiry). It must go on at once.
-    day = load_scenario(Path(__file__).parents[2] / "examples" / "line_short_day.toml")
+    day = load_line_scenario(Path(__file__).parents[2] / "examples" / "line_short_day.toml")
     result = run_line(day, advised=False, until_s=5400.0)
     trace = result.trace[103]
     after = trace[(trace[:, 0] > 4805.0)]
@@ -308,7 +310,7 @@ def test_a_replan_in_the_last_centimetres_of_a_stop_leaves_the_stop_to_finish():
     millimetres while still moving (the precise stop lands within its tolerance). An
     event then (here the cab signal) re-planned it from past the end, and the planner
     refused the backward section: the 60-train benchmark day stopped with a ConfigError."""
-    scenario = load_scenario(Path(__file__).parents[2] / "examples" / "heavy_haul_day.toml")
+    scenario = load_line_scenario(Path(__file__).parents[2] / "examples" / "heavy_haul_day.toml")
     service = scenario.services[0]
     driver, _ = line_train(scenario, service, True)
     t = service.stops[0].departure_s
@@ -332,7 +334,7 @@ def test_a_radio_outage_is_timed_from_the_start_of_the_run():
     the link's clock counts from the epoch: it must still take the radio down then (it
     silently never did), fail the links of the trains powered on, and let them back."""
     channel = {"outages": [{"start_s": 600.0, "end_s": 780.0}]}
-    result = run_line(scenario_from_mapping(BASE | {"channel": channel}), until_s=1200.0)
+    result = run_line(line_scenario_from_mapping(BASE | {"channel": channel}), until_s=1200.0)
     link = result.link
     assert link["channel"]["lost_outage"] > 0
     assert link["channel"]["lost_random"] == link["channel"]["lost_dead_zone"] == 0
@@ -346,7 +348,7 @@ def test_a_radio_outage_is_timed_from_the_start_of_the_run():
 def test_a_line_run_can_run_its_trains_on_the_consist_model():
     """``[trains] model = "consist"``: every train of the day is its consist (couplers, the
     freight air brake along it), driven on the same plans; the safety KPIs hold."""
-    day = scenario_from_mapping(BASE | {"trains": {"model": "consist"}})
+    day = line_scenario_from_mapping(BASE | {"trains": {"model": "consist"}})
     run = run_line(day)
     kpis = run.kpis()
     assert kpis["train_model"] == "consist"
@@ -358,4 +360,4 @@ def test_a_line_run_can_run_its_trains_on_the_consist_model():
 @pytest.mark.parametrize("model", ["consists", 1, ""])
 def test_an_unknown_train_model_is_refused_by_name(model):
     with pytest.raises(ConfigError, match=r"trains\.model"):
-        scenario_from_mapping(BASE | {"trains": {"model": model}})
+        line_scenario_from_mapping(BASE | {"trains": {"model": model}})

@@ -12,8 +12,8 @@ from railpilot.ground.operations import parse_operation
 from railpilot.ground.store import Store
 from railpilot.line.loader import load_line
 from railpilot.link import DeliveryState, OnboardConfig, TargetReason, TravelDirection, TsrState
+from railpilot.link.keys import seeded_test_keys as loadtest_keys
 from railpilot.net.client import Trajectory
-from railpilot.net.loadtest import loadtest_keys
 
 LINE = load_line("heavy-haul")
 UP, DOWN = TravelDirection.UP, TravelDirection.DOWN
@@ -67,6 +67,7 @@ def lossy(seed: int) -> LinkSim:
 
 
 @pytest.mark.parametrize("seed", range(5))
+@pytest.mark.slow
 def test_a_tsr_reaches_every_concerned_train_exactly_once_through_loss_and_a_dead_zone(
     seed: int,
 ) -> None:
@@ -80,6 +81,7 @@ def test_a_tsr_reaches_every_concerned_train_exactly_once_through_loss_and_a_dea
     assert_applied_once_by(sim, session, concerned)
 
 
+@pytest.mark.slow
 def test_the_same_seed_gives_the_same_run_and_another_seed_another() -> None:
     def run(seed: int) -> tuple[object, ...]:
         sim = lossy(seed)
@@ -133,6 +135,7 @@ def test_bad_train_lists_are_refused_naming_the_field() -> None:
 
 
 @pytest.mark.parametrize("seed", range(3))
+@pytest.mark.slow
 def test_a_ground_killed_with_deliveries_pending_resumes_them_from_its_store(seed: int) -> None:
     channel = ChannelModel(loss=0.5)
     with Store(":memory:") as store:

@@ -33,7 +33,7 @@ import pytest
 from railpilot.cosim.driver import TrainDriver
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.live import LiveOptions, run_live
-from railpilot.cosim.scenario import ScenarioEvent, load_scenario
+from railpilot.cosim.scenario import ScenarioEvent, load_line_scenario
 from railpilot.onboard.drive import train_preset
 from railpilot.web.browser import missing_browser
 
@@ -48,7 +48,7 @@ EVENT_DELAYS_S = (0.5, 1.0, 2.0)
 
 @pytest.fixture(scope="module")
 def runs(tmp_path_factory: pytest.TempPathFactory) -> tuple[dict, dict, dict]:  # type: ignore[type-arg]
-    scenario = load_scenario(SCENARIO)
+    scenario = load_line_scenario(SCENARIO)
     shot = tmp_path_factory.mktemp("live") / "dashboard.png"
     live = run_live(
         SCENARIO,
@@ -63,6 +63,7 @@ def _later(events: tuple[ScenarioEvent, ...], delay_s: float) -> tuple[ScenarioE
     return tuple(dataclasses.replace(e, at_s=e.at_s + delay_s) for e in events)
 
 
+@pytest.mark.slow
 def test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance(runs) -> None:  # type: ignore[no-untyped-def]
     live, cosim, extra = runs
     for kpis in (live, cosim):
@@ -84,6 +85,7 @@ def test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance(runs
         assert abs(ours["red_signal_stops"] - theirs["red_signal_stops"]) <= 1, train
 
 
+@pytest.mark.slow
 def test_live_run_went_over_the_real_link_on_the_run_s_clock(runs) -> None:  # type: ignore[no-untyped-def]
     live, _, extra = runs
     result = extra["result"]
@@ -104,7 +106,7 @@ def test_live_run_went_over_the_real_link_on_the_run_s_clock(runs) -> None:  # t
     # the events came at their time on the run's clock (within 2 simulated seconds)
     for event, planned in zip(
         sorted(result.events, key=lambda e: e["t_s"]),
-        sorted(load_scenario(SCENARIO).events, key=lambda e: e.at_s),
+        sorted(load_line_scenario(SCENARIO).events, key=lambda e: e.at_s),
         strict=True,
     ):
         assert abs(event["t_s"] - planned.at_s) < 2.0
@@ -118,6 +120,7 @@ def test_live_run_went_over_the_real_link_on_the_run_s_clock(runs) -> None:  # t
     assert live["live"]["speedup"] == SPEEDUP
 
 
+@pytest.mark.slow
 def test_the_scenario_s_radio_stood_between_the_trains_and_the_ground_live(runs) -> None:  # type: ignore[no-untyped-def]
     live, cosim, _ = runs
     for kpis in (live, cosim):
@@ -132,6 +135,7 @@ def test_the_scenario_s_radio_stood_between_the_trains_and_the_ground_live(runs)
     assert live["link"]["connects"] > len(live["trains"])
 
 
+@pytest.mark.slow
 def test_the_dashboard_was_photographed_during_the_live_run(runs) -> None:  # type: ignore[no-untyped-def]
     missing = missing_browser()
     if missing is not None:
@@ -142,7 +146,7 @@ def test_the_dashboard_was_photographed_during_the_live_run(runs) -> None:  # ty
     assert shot["trains_shown"] >= 1
     # the registration does not carry a train's category: the run's ground has it from
     # the scenario, and the page shows it for every train it lists
-    scenario = load_scenario(SCENARIO)
+    scenario = load_line_scenario(SCENARIO)
     categories = {str(s.train_id): train_preset(s.kind).category for s in scenario.services}
     shown = shot["categories_shown"]
     assert len(shown) == shot["trains_shown"]
@@ -155,7 +159,7 @@ def test_the_dashboard_was_photographed_during_the_live_run(runs) -> None:  # ty
 
 
 def _driver_at_origin() -> TrainDriver:
-    scenario = load_scenario(SCENARIO)
+    scenario = load_line_scenario(SCENARIO)
     service = scenario.services[1]  # 102: departs at 9 min
     return TrainDriver(scenario.line, service, scenario.epoch_s, 420.0)
 
@@ -165,7 +169,7 @@ def test_a_train_at_a_station_sees_its_exit_signal() -> None:
     (it was the station itself: the exit signal 30 m ahead was never shown)."""
     driver = _driver_at_origin()
     driver.at(500.0)  # standing, before its departure
-    scenario = load_scenario(SCENARIO)
+    scenario = load_line_scenario(SCENARIO)
     next_station = scenario.line.station(driver.service.stops[1].station)
     assert driver.next_stop_m() == next_station.stop_m(driver.direction)
 
@@ -196,6 +200,7 @@ def _scheduling() -> tuple[int, int | None, set[int] | None]:
     return os.nice(0), policy, cores
 
 
+@pytest.mark.slow
 def test_the_dashboards_browser_runs_below_the_runs_priority() -> None:
     """The photographer's process (and the chromium it starts, which inherits it) is
     niced, and on Linux idle-scheduled on one core, so that a browser's start does not

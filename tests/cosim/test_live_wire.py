@@ -11,7 +11,7 @@ import pytest
 
 from railpilot.cosim.live import LiveOptions, _LiveRun
 from railpilot.cosim.live_wire import MAX_LINE, connect, hello_name, send
-from railpilot.cosim.scenario import load_scenario
+from railpilot.cosim.scenario import load_line_scenario
 
 SECRET = "s3cret-of-this-run"
 TRAINS = (101, 102)
@@ -52,7 +52,7 @@ def test_a_stranger_on_the_run_s_wire_is_closed_and_its_lines_never_read() -> No
     """The live run's own accept (cosim/live.py): a connection with the wrong secret is
     closed after its hello, whatever it sends next; a train of the run is heard."""
     path = Path(__file__).parents[2] / "examples" / "line_live_short.toml"
-    run = _LiveRun(load_scenario(path), str(path), LiveOptions(), "unused.db")
+    run = _LiveRun(load_line_scenario(path), str(path), LiveOptions(), "unused.db")
     train = next(iter(run.services))
 
     async def scenario() -> None:

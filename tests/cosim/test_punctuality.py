@@ -10,8 +10,11 @@ import pytest
 
 from railpilot.cosim.driver import SectionRun, Service, Stop
 from railpilot.cosim.line_run import TrainRun, punctuality, run_line
-from railpilot.cosim.scenario import load_scenario
+from railpilot.cosim.scenario import load_line_scenario
 from railpilot.reproduce.base import find_example
+
+# a short line day
+pytestmark = pytest.mark.slow
 
 #: three stops: away at 0 s, at station 2 from 1,000 to 1,100 s, at station 3 at 2,000 s
 SERVICE = Service(
@@ -66,7 +69,7 @@ def test_the_shares_on_time_count_an_arrival_not_made_as_late() -> None:
 
 @pytest.fixture(scope="module")
 def short_day():  # type: ignore[no-untyped-def]
-    return run_line(load_scenario(find_example("line_short_day.toml")))
+    return run_line(load_line_scenario(find_example("line_short_day.toml")))
 
 
 def test_a_short_day_reads_the_arrivals_the_trains_made(short_day) -> None:  # type: ignore[no-untyped-def]

@@ -16,7 +16,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from railpilot.cosim.scenario import LineScenario, scenario_from_mapping
+from railpilot.cosim.scenario import LineScenario, line_scenario_from_mapping
 from railpilot.errors import ConfigError
 
 FILE = Path(__file__).parents[2] / "examples" / "line_live_short.toml"
@@ -61,7 +61,7 @@ CASES = [(p, v) for p in _paths(BASE) for v in (*WRONG, _REMOVED)]
 
 
 def test_the_file_itself_loads() -> None:
-    assert isinstance(scenario_from_mapping(BASE), LineScenario)
+    assert isinstance(line_scenario_from_mapping(BASE), LineScenario)
 
 
 def test_one_wrong_value_is_refused_naming_a_field_or_still_allowed() -> None:
@@ -69,7 +69,7 @@ def test_one_wrong_value_is_refused_naming_a_field_or_still_allowed() -> None:
     refused = 0
     for path, value in CASES:
         try:
-            scenario_from_mapping(_with(BASE, path, value))
+            line_scenario_from_mapping(_with(BASE, path, value))
         except ConfigError as error:
             assert error.field, (path, value)  # it names what it refused
             refused += 1

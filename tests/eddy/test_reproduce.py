@@ -6,6 +6,9 @@ import pytest
 
 from railpilot.reproduce.eddy_torque import rank_verdict, run, run_case
 
+# the eddy-current brake's paper cases
+pytestmark = pytest.mark.slow
+
 CLOSED = ("pid", "fuzzy", "fuzzy_pi")
 
 

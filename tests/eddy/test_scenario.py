@@ -81,3 +81,42 @@ def test_simulate_eddy_refuses_more_steps_than_it_may_take(dt_s):
         )
     assert info.value.field == "dt_s"
     assert f"{MAX_STEPS:,}" in info.value.allowed
+
+
+@pytest.mark.parametrize(
+    ("patch", "field", "value", "allowed"),
+    [
+        ({"torque_demand_nm": -1}, "torque_demand_nm", -1.0, "a torque in (0, 100000] N m"),
+        ({"torque_demand_nm": "big"}, "torque_demand_nm", "big", "a number"),
+        ({"duration_s": float("nan")}, "duration_s", None, "a finite number"),
+        ({"record_every": 1.5}, "record_every", 1.5, "an integer"),
+        ({"record_every": 0}, "record_every", 0, "an integer >= 1"),
+        ({"fuzzy": {"n_grid": True}}, "fuzzy.n_grid", True, "an integer"),
+        ({"pid": 3}, "pid", 3, "a table of keys"),
+        ({"controller": "lqr"}, "controller", "lqr", "one of open_loop, pid, fuzzy, fuzzy_pi"),
+        ({"kind": "ep-braking"}, "kind", "ep-braking", "'eddy-brake'"),
+        ({"table": {"csv": ""}}, "table.csv", "", "a path string"),
+        ({"table": {"csv": "x.csv", "rows": 3}}, "table.rows", 3, None),
+    ],
+)
+def test_bad_input_says_the_value_and_what_is_allowed(patch, field, value, allowed):
+    with pytest.raises(ScenarioError) as info:
+        EddyScenario.from_mapping({**BASE, **patch})
+    assert info.value.field == field
+    if value is not None:
+        assert info.value.value == value and type(info.value.value) is type(value)
+    if allowed is not None:
+        assert info.value.allowed == allowed
+
+
+def test_a_whole_number_written_as_a_float_is_taken():
+    scenario = EddyScenario.from_mapping({**BASE, "record_every": 5.0, "fuzzy": {"n_grid": 41.0}})
+    assert scenario.record_every == 5 and type(scenario.record_every) is int
+    assert scenario.fuzzy["n_grid"] == 41.0
+
+
+def test_a_missing_required_key_says_it_is_required():
+    with pytest.raises(ScenarioError) as info:
+        EddyScenario.from_mapping({"torque_demand_nm": 3500})
+    assert (info.value.field, info.value.value) == ("initial_speed_kmh", None)
+    assert info.value.allowed == "a number (this key is required)"

@@ -1,4 +1,4 @@
-"""Energy-time curves from the onboard planner (railpilot.ground.energy), issue 11 item 2.
+"""Energy-time curves from the onboard planner (railpilot.ground.energy).
 
 On the shipped heavy-haul line's first section (Shenchi South to Ningwu West, 22.5 km): the
 curve starts at the planner's fastest run, lies on or below every sample, passes through

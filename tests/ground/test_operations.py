@@ -186,3 +186,21 @@ def test_bad_requests_of_the_other_operations(
     line: RailLine, op: str, fields: dict[str, object], field: str
 ) -> None:
     assert field in _errors(line, op, **fields)
+
+
+def test_the_operations_words_are_the_link_s_and_the_ground_s() -> None:
+    """The operations' model (railpilot.schema, which may not import the link or the
+    ground) writes the reasons, the tracks and the 32-bit bound out: they are these."""
+    from railpilot.ground.targets import DECLARED_REASONS as GROUND_DECLARED
+    from railpilot.link.messages import U32_MAX as LINK_U32_MAX
+    from railpilot.schema import operations as schema
+
+    assert tuple(r.name.lower() for r in GROUND_DECLARED) == schema.DECLARED_REASONS
+    assert tuple(r.name.lower() for r in TargetReason) == schema.TARGET_REASONS
+    assert schema.U32_MAX == LINK_U32_MAX
+    assert set(schema.TRACKS) == {"up", "down", "both"}
+
+
+def test_a_field_left_blank_in_a_form_is_a_field_left_out(line: RailLine) -> None:
+    errors = _errors(line, reason="   ", valid_from_min="")
+    assert errors == {"reason": "required: why the restriction is set, e.g. 'track work'"}

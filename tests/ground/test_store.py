@@ -64,6 +64,7 @@ def _filled(store: GroundStore) -> None:
 
 
 _P = DeliveryState.PENDING
+_A = DeliveryState.ACKNOWLEDGED
 
 
 def test_a_sqlite_store_is_in_wal_mode_with_full_sync_and_the_current_schema(
@@ -254,3 +255,43 @@ def test_open_store_picks_the_backend_from_the_target(tmp_path: Path) -> None:
     assert is_postgres_url("postgresql://ground@db/railpilot")
     assert is_postgres_url("POSTGRES://ground@db/railpilot")
     assert not is_postgres_url("ground.db") and not is_postgres_url("postgresql.db")
+
+
+#: Where schema 1 kept the target points and the dispatch commands: a table each (types
+#: both backends take).
+_SCHEMA_1_TABLES = (
+    "CREATE TABLE target_points (train_id BIGINT NOT NULL, target_id BIGINT NOT NULL, "
+    "position_m DOUBLE PRECISION NOT NULL, reason TEXT NOT NULL, state TEXT NOT NULL, "
+    "updated_at_s DOUBLE PRECISION NOT NULL, PRIMARY KEY (train_id, target_id))",
+    "CREATE TABLE dispatch_commands (train_id BIGINT NOT NULL, command_number BIGINT NOT NULL, "
+    "text TEXT NOT NULL, state TEXT NOT NULL, updated_at_s DOUBLE PRECISION NOT NULL, "
+    "PRIMARY KEY (train_id, command_number))",
+)
+
+
+def test_a_schema_1_store_opens_with_its_deliveries(target: str) -> None:
+    position_m = 7_500.0 + 1 / 3  # no decimal writes it exactly: it must come back bit for bit
+    open_store(target).close()
+    for sql in (
+        *_SCHEMA_1_TABLES,
+        f"INSERT INTO target_points VALUES (1001, 3, {position_m!r}, 'TRAIN_AHEAD', 'PENDING', 1)",
+        "INSERT INTO dispatch_commands VALUES (1001, 42, 'hold at Datong', 'ACKNOWLEDGED', 2)",
+        "DROP TABLE deliveries",
+        "UPDATE schema_version SET version = 1",
+    ):
+        _behind_the_store(target, sql)
+    with open_store(target) as store:
+        assert store.schema_version == SCHEMA_VERSION
+        train = store.load().trains[1001]
+        assert train.target_points == {
+            3: (TargetPoint(3, position_m, TargetReason.TRAIN_AHEAD), DeliveryState.PENDING)
+        }
+        assert train.dispatch_commands == {
+            42: (DispatchCommand(42, "hold at Datong"), DeliveryState.ACKNOWLEDGED)
+        }
+        # the command number still names its command for good
+        store.record_delivery(1001, DispatchCommand(42, "hold at Datong"), _A, at_s=T0)
+        with pytest.raises(StoreError, match="command_number = 42 is not allowed"):
+            store.record_delivery(1001, DispatchCommand(42, "go on"), _P, at_s=T0)
+    with open_store(target) as store:  # migrated once: opened again, nothing changes
+        assert store.load().trains[1001].target_points[3][0].position_m == position_m

@@ -18,7 +18,13 @@ import psycopg
 import pytest
 from psycopg.conninfo import conninfo_to_dict
 
-from railpilot.ground.store import GroundStore, StoreError, open_store, redact_dsn
+from railpilot.ground.store import (
+    SCHEMA_VERSION,
+    GroundStore,
+    StoreError,
+    open_store,
+    redact_dsn,
+)
 from railpilot.ground.store_postgres import APPLICATION_NAME, SCHEMA_LOCK, PostgresStore
 from railpilot.link import DeliveryState, DispatchCommand, GroundConfig, TsrSet, TsrState
 from railpilot.net.server import GroundServer
@@ -302,7 +308,7 @@ def test_front_servers_starting_together_create_the_schema_once(
         stores = [worker.finish() for worker in starting]
         versions = holder.execute("SELECT version FROM schema_version").fetchall()
     assert [worker.error for worker in starting] == [None, None]
-    assert versions == [(1,)]
+    assert versions == [(SCHEMA_VERSION,)]
     for store in stores:
         store.record_tsr(TSR, actor="dispatcher-7", at_s=T0)  # both work
         store.close()

@@ -28,6 +28,9 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import spec_peer as sp
 
+# an independent peer process over real TCP
+pytestmark = pytest.mark.slow
+
 ROOT = Path(__file__).resolve().parents[2]
 PROTOCOL_MD = ROOT / "docs" / "protocol.md"
 RAILPILOT = ROOT / ".venv" / "bin" / "railpilot"

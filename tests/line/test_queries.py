@@ -10,7 +10,7 @@ from railpilot.errors import LineError
 from railpilot.line import DOWN, UP, RailLine, parse_line
 from railpilot.link.messages import TravelDirection
 from railpilot.units import kmh_to_mps
-from railpilot.vehicle.line import Line, Segment, Station
+from railpilot.vehicle.line import Line, Segment, StopPoint
 from railpilot.vehicle.profile import elevation_table
 
 from .helpers import dumps, tiny
@@ -35,7 +35,7 @@ def test_to_vehicle_line_going_up(line):
         _segments(vehicle.speed_limits),
         [[0, 2000, kmh_to_mps(80.0)], [2000, 3000, kmh_to_mps(60.0)]],
     )
-    assert vehicle.stations == (Station("S", pytest.approx(2650.0)),)
+    assert vehicle.stations == (StopPoint("S", pytest.approx(2650.0)),)
 
 
 def test_to_vehicle_line_going_down(line):
@@ -47,7 +47,7 @@ def test_to_vehicle_line_going_down(line):
         _segments(vehicle.speed_limits),
         [[0, 1000, kmh_to_mps(40.0)], [1000, 3000, kmh_to_mps(80.0)]],
     )
-    assert vehicle.stations == (Station("S", pytest.approx(650.0)),)
+    assert vehicle.stations == (StopPoint("S", pytest.approx(650.0)),)
 
 
 def test_distance_along_and_back(line):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -372,6 +373,21 @@ def test_end_before_start_of_the_line(tmp_path):
 
     message = _error(tmp_path, mutate)
     assert "end_km = 9.0" in message
+
+
+def test_a_line_file_in_json_reads_as_the_same_line(tmp_path):
+    path = tmp_path / "line.json"
+    path.write_text(json.dumps({"$schema": "line.schema.json", **tiny()}), encoding="utf-8")
+    assert read_line(path) == read_line(write(tmp_path, tiny()))
+
+
+def test_a_key_of_the_wrong_type_is_named_with_what_is_allowed(tmp_path):
+    message = _error(tmp_path, _set("signals", 0, direction=3))
+    assert "signals[0] ('U1', 3, km 10.500).direction = 3" in message
+    assert "a string (the key is required)" in message
+    message = _error(tmp_path, _set("stations", 0, km=2e4))
+    assert "stations[0].km = 20000.0" in message
+    assert "a km post in [-10000, 10000]" in message
 
 
 def test_invalid_toml(tmp_path):

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import random
 
+import pytest
+
 from railpilot.link import (
     FrameDecoder,
     FrameError,
@@ -101,6 +103,7 @@ def random_bytes(rng: random.Random) -> bytes:
     )
 
 
+@pytest.mark.slow
 def test_decoder_survives_100k_random_and_mutated_inputs() -> None:
     rng = random.Random(SEED)
     frames = corpus()

@@ -44,6 +44,35 @@ def test_malformed_hex_is_reported_without_the_value(tmp_path: Path) -> None:
     assert KEY_1.hex()[2:] not in str(info.value)
 
 
+@pytest.mark.parametrize(
+    ("entry", "message"),
+    [
+        ('id = "{key}"', "train[0]: id must be an integer train id, got a str"),
+        (
+            'id = 5\nactive_key = "{key}"',
+            "train[0]: active_key must be an integer key id, got a str",
+        ),
+        ("id = 5\nactive_key = 1.0", "train[0]: active_key must be an integer key id, got 1.0"),
+        ("active_key = 1", "train[0]: id must be an integer train id, got nothing"),
+    ],
+)
+def test_a_key_of_the_wrong_type_is_named_and_a_string_only_by_its_type(
+    tmp_path: Path, entry: str, message: str
+) -> None:
+    key = KEY_1.hex()
+    text = "[[train]]\n" + entry.format(key=key) + f'\n[train.keys]\n1 = "{key}"\n'
+    with pytest.raises(KeyFileError) as info:
+        load_key_file(write_key_file(tmp_path, text))
+    assert message in str(info.value)
+    assert key not in str(info.value)
+
+
+def test_a_key_that_is_no_string_is_named_by_its_id(tmp_path: Path) -> None:
+    text = "[[train]]\nid = 5\n[train.keys]\n1 = 7\n"
+    with pytest.raises(KeyFileError, match="train\\[0\\]: key '1' must be a hex string"):
+        load_key_file(write_key_file(tmp_path, text))
+
+
 def test_short_key_is_reported_by_length_only(tmp_path: Path) -> None:
     text = '[[train]]\nid = 5\n[train.keys]\n1 = "00112233"\n'
     with pytest.raises(KeyFileError, match="length") as info:

@@ -121,6 +121,7 @@ def test_every_command_has_help(argv: list[str], capsys: pytest.CaptureFixture[s
     assert "usage: railpilot" in capsys.readouterr().out
 
 
+@pytest.mark.slow
 def test_serve_answers_admin_commands_and_stops_on_sigterm(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:

@@ -211,7 +211,7 @@ def test_seconds_must_be_a_finite_number_above_zero(
     monkeypatch: pytest.MonkeyPatch,
     never_run: None,
 ) -> None:
-    import railpilot.net.loadtest as loadtest
+    import railpilot.rigs.loadtest as loadtest
 
     def refuse(options: Any) -> None:
         raise AssertionError("the load test started although its input is bad")

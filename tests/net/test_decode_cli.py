@@ -11,7 +11,6 @@ from pathlib import Path
 import pytest
 
 from railpilot.cli import main
-from railpilot.commands.link import _report_dict
 from railpilot.link import (
     Heartbeat,
     RunningInfo,
@@ -22,6 +21,7 @@ from railpilot.link import (
     encode_frame,
     unstuff,
 )
+from railpilot.link.decode_report import report_dict
 
 GROUND_ID = 1
 TRAIN_ID = 1001
@@ -62,7 +62,7 @@ def expected_json(data: bytes) -> dict[str, object]:
     """What the streamed JSON must hold: decode_stream's reports and their totals."""
     reports = list(decode_stream(data))
     return {
-        "frames": [_report_dict(r) for r in reports],
+        "frames": [report_dict(r) for r in reports],
         "count": len(reports),
         "ok": sum(r.ok for r in reports),
         "failed": sum(not r.ok for r in reports),
@@ -266,6 +266,7 @@ def test_json_of_a_good_capture_holds_the_frames_the_library_built(
     assert report["frames"][2]["message"]["fields"]["session"] == 126
 
 
+@pytest.mark.slow
 def test_streamed_json_of_many_frames_equals_what_decode_stream_yields(
     tmp_path: Path, capsys: pytest.CaptureFixture[str]
 ) -> None:
@@ -312,6 +313,7 @@ def run_cli(*args: str, stdin: bytes) -> subprocess.CompletedProcess[bytes]:
     )
 
 
+@pytest.mark.slow
 def test_the_command_reads_stdin_and_prints_one_json_object() -> None:
     wire = b"".join(frames())
     done = run_cli("-", "--json", stdin=wire[:-5])
@@ -320,6 +322,7 @@ def test_the_command_reads_stdin_and_prints_one_json_object() -> None:
     assert report == expected_json(wire[:-5]) and report["truncated"] is True
 
 
+@pytest.mark.slow
 def test_the_command_exits_2_on_bad_hex_with_nothing_on_stdout() -> None:
     done = run_cli("--json", stdin=b"7e01\n7e0g\n")
     assert done.returncode == 2 and done.stdout == b""

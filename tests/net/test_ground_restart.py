@@ -1,4 +1,4 @@
-"""Issue 11 item 4, "nothing lost": a ground killed with SIGKILL and restarted on the same
+"""Nothing is lost: a ground killed with SIGKILL and restarted on the same
 SQLite store resumes every pending delivery, still knows every active TSR and can cancel
 it, and no train applies anything twice - on a clean link and under 50 % frame loss with
 reconnects; and on the clean link again with the PostgreSQL store (a database of its own
@@ -34,7 +34,7 @@ import pytest
 # tests/ground's PostgreSQL fixtures; "ground" is that package, importable as this one's
 # relative imports are (pytest puts tests/ on the path)
 from ground.postgres import postgres_dsn, postgres_server
-from railpilot.ground.store import Store, open_store, redact_dsn
+from railpilot.ground.store import SCHEMA_VERSION, Store, open_store, redact_dsn
 from railpilot.link import (
     DispatchCommand,
     Event,
@@ -314,6 +314,7 @@ class Trains:
         pytest.param(0.0, "postgres", id="clean-link-postgres"),
     ],
 )
+@pytest.mark.slow
 def test_a_ground_killed_while_deliveries_are_pending_loses_nothing(
     tmp_path: Path, request: pytest.FixtureRequest, drop: float, backend: str
 ) -> None:
@@ -597,4 +598,4 @@ def test_serve_keeps_its_store_in_the_db_file(tmp_path: Path) -> None:
     db = tmp_path / "ground.db"
     assert main([*_serve(db), "--seconds", "0.1"]) == 0
     with Store(db) as store:
-        assert store.schema_version == 1 and store.journal_mode == "wal"
+        assert store.schema_version == SCHEMA_VERSION and store.journal_mode == "wal"

@@ -1,4 +1,4 @@
-"""Issue 8: attacks and faults the threat suite did not catch, each over real TCP.
+"""Attacks and faults the threat suite did not catch, each over real TCP.
 
 Every test here failed on the link before the fix (a withheld frame with echo 0 changed
 state, a deregistration on a second connection ended the train's registration, random bytes

@@ -13,7 +13,7 @@ import pytest
 from railpilot import cli
 from railpilot.line.loader import load_line
 from railpilot.line.model import DOWN, UP
-from railpilot.net.loadtest import (
+from railpilot.rigs.loadtest import (
     SPEED_SHARE,
     LoadtestOptions,
     dashboard_report,
@@ -51,6 +51,7 @@ DASHBOARD_KEYS = (
 )
 
 
+@pytest.mark.slow
 def test_small_loadtest_reports_every_key_and_loses_nothing() -> None:
     report = run_loadtest(LoadtestOptions(trains=20, seconds=3.0, drain_s=3.0))
     assert set(KEYS) <= set(report)
@@ -172,6 +173,7 @@ def test_screenshot_without_dashboard_exits_2_naming_the_option(
 # --- with the page open in chromium
 
 
+@pytest.mark.slow
 @pytest.mark.browser
 @pytest.mark.skipif(
     not browser.CHROMIUM.exists(),

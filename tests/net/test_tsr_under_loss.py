@@ -1,4 +1,4 @@
-"""Issue 3: under 30 % frame loss through the proxy, every TSR is applied exactly once on
+"""Under 30 % frame loss through the proxy, every TSR is applied exactly once on
 the train and acknowledged on the ground (real loopback TCP, seeded proxy)."""
 
 from __future__ import annotations
@@ -20,6 +20,7 @@ LOSSY = replace(FAST, timeout_cycles=10)
 
 
 @pytest.mark.parametrize("seed", [11, 12])
+@pytest.mark.slow
 def test_every_tsr_is_applied_exactly_once_and_acknowledged_under_30_percent_loss(
     seed: int,
 ) -> None:

@@ -1,4 +1,4 @@
-"""Driving advice and the driver model (railpilot.onboard.advice), issue 10 item 7 (part)."""
+"""Driving advice and the driver model (railpilot.onboard.advice)."""
 
 import math
 
@@ -9,7 +9,7 @@ from numpy.testing import assert_allclose
 from railpilot.errors import ConfigError
 from railpilot.onboard.advice import Advice, DriverModel, advise
 from railpilot.onboard.drive import heavy_haul_loaded
-from railpilot.onboard.planner import PlannedCurve
+from railpilot.onboard.planner import SpeedPlan
 from railpilot.units import G_MPS2
 
 PRESET = heavy_haul_loaded()
@@ -20,7 +20,7 @@ TRAIN = PRESET.train
 def cruise_plan(speed=20.0, length=10_000.0):
     s = np.linspace(0.0, length, 1001)
     v = np.full(s.shape, speed)
-    return PlannedCurve(s, v, length / speed, 0.0, 0.0, None, None, None, True)
+    return SpeedPlan(s, v, length / speed, 0.0, 0.0, None, None, None, True)
 
 
 def resistance_n(v):

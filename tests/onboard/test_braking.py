@@ -1,4 +1,4 @@
-"""Braking prediction and the paper's TSR check (railpilot.onboard.braking), issue 10 item 5.
+"""Braking prediction and the paper's TSR check (railpilot.onboard.braking).
 
 The compiled Runge-Kutta loop against analytic solutions (constant deceleration, Davis only)
 and against an independent integration of the same model with SciPy (``solve_ivp`` with
@@ -174,6 +174,7 @@ def scipy_tsr(braking, table, v0, distance, limit):
 
 @pytest.mark.parametrize("limit_kmh", LIMITS_KMH)
 @pytest.mark.parametrize("grade", GRADES)
+@pytest.mark.slow
 def test_tsr_check_reproduces_an_independent_integration_within_2_percent(grade, limit_kmh):
     table = level_table(grade)
     v0, limit = kmh_to_mps(80.0), kmh_to_mps(limit_kmh)

@@ -1,4 +1,4 @@
-"""The onboard re-plans while running (issue 10, "What it must show"): a TSR received
+"""The onboard re-plans while running: a TSR received
 mid-route, a target point set by a stopped train ahead and cleared when it moves on; and
 the origin-to-port run with the shipped timetable."""
 
@@ -20,6 +20,9 @@ from railpilot.onboard.drive import (
     heavy_haul_loaded,
 )
 from railpilot.units import kmh_to_mps
+
+# whole drives between stations
+pytestmark = pytest.mark.slow
 
 LINE = load_line("heavy-haul")
 #: a block signal of the up line between stations 5 (km 122.8) and 6 (km 155.8)
@@ -158,8 +161,8 @@ def test_the_preset_is_its_consist_hauled_by_the_example_drive_without_its_hando
     from dataclasses import replace
     from pathlib import Path
 
+    from railpilot.scenario.consist_file import consist_preset
     from railpilot.scenario.loader import load_scenario
-    from railpilot.vehicle.consist import consist_preset
 
     example = load_scenario(Path(__file__).parents[2] / "examples" / "heavy_haul_run.toml")
     preset = heavy_haul_loaded()

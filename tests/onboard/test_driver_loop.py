@@ -1,7 +1,9 @@
-"""The loop closed in simulation: the driver model drives the planned curve (issue 10 item 7).
+"""The loop closed in simulation: the driver model drives the planned curve.
 
 Measured, not tuned: the heavy-haul train from station 1 to 2 of the shipped line.
 """
+
+import pytest
 
 from railpilot.line import load_line
 from railpilot.onboard.advice import DriverModel
@@ -11,6 +13,7 @@ from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.run import simulate
 
 
+@pytest.mark.slow
 def test_a_driver_following_the_plan_arrives_close_to_the_planned_time() -> None:
     line = load_line("heavy-haul")
     preset = heavy_haul_loaded()

@@ -1,4 +1,4 @@
-"""Most restrictive speed profile (railpilot.onboard.mrsp), issue 10 item 2.
+"""Most restrictive speed profile (railpilot.onboard.mrsp).
 
 Properties against a brute-force pointwise minimum of the inputs (hypothesis), hand cases
 with exact values, the train-length extension against the link's own, and the errors.
@@ -168,6 +168,7 @@ target_lists = st.lists(st.builds(TargetStop, position, st.integers(0, 9)), max_
 
 @settings(max_examples=300, deadline=None)
 @given(profiles(), tsr_lists, target_lists, directions)
+@pytest.mark.slow
 def test_never_above_any_input(static, tsrs, targets, direction):
     mrsp = most_restrictive_profile(static, tsrs, targets, direction=direction)
     x = sample_points(*inputs_positions(static, tsrs, targets), *mrsp.edges_m)
@@ -181,6 +182,7 @@ def test_never_above_any_input(static, tsrs, targets, direction):
 
 @settings(max_examples=300, deadline=None)
 @given(profiles(), tsr_lists, target_lists, directions)
+@pytest.mark.slow
 def test_equals_the_pointwise_minimum_of_the_inputs(static, tsrs, targets, direction):
     mrsp = most_restrictive_profile(static, tsrs, targets, direction=direction)
     x = sample_points(*inputs_positions(static, tsrs, targets), extra=600)
@@ -189,6 +191,7 @@ def test_equals_the_pointwise_minimum_of_the_inputs(static, tsrs, targets, direc
 
 @settings(max_examples=300, deadline=None)
 @given(profiles(), tsr_lists, target_lists, directions)
+@pytest.mark.slow
 def test_canonical_form(static, tsrs, targets, direction):
     mrsp = most_restrictive_profile(static, tsrs, targets, direction=direction)
     for edges in (mrsp.edges_m, mrsp.profile.edges_m, static.edges_m):
@@ -204,6 +207,7 @@ def test_canonical_form(static, tsrs, targets, direction):
 
 @settings(max_examples=300, deadline=None)
 @given(profiles(), tsr_lists, target_lists, directions)
+@pytest.mark.slow
 def test_at_an_edge_the_stricter_side_applies(static, tsrs, targets, direction):
     mrsp = most_restrictive_profile(static, tsrs, targets, direction=direction)
     edges = mrsp.profile.edges_m
@@ -328,6 +332,7 @@ def test_extension_agrees_with_the_link(start, end, train_length, direction):
     directions,
     st.randoms(use_true_random=False),
 )
+@pytest.mark.slow
 def test_insert_and_cancel_by_session_are_idempotent_and_order_independent(
     static, pool, operations, direction, rnd
 ):
@@ -375,6 +380,7 @@ def test_minimum_is_the_pointwise_minimum_over_the_overlap(a, b):
 
 @settings(max_examples=200, deadline=None)
 @given(profiles(), tsr_lists, target_lists, directions)
+@pytest.mark.slow
 def test_decreases_are_every_step_down_in_travel_order(static, tsrs, targets, direction):
     mrsp = most_restrictive_profile(static, tsrs, targets, direction=direction)
     found = mrsp.decreases()

@@ -1,4 +1,4 @@
-"""The energy-efficient planned curve (railpilot.onboard.planner), issue 10 item 6.
+"""The energy-efficient planned curve (railpilot.onboard.planner).
 
 Properties: it meets the running time within one control period; its energy is never above
 the fastest profile's with a uniform (linear) time margin; energy does not increase as the
@@ -201,6 +201,7 @@ DP_TOLERANCE = 0.03
 
 
 @pytest.mark.parametrize("name", DP_CASES)
+@pytest.mark.slow
 def test_within_3_percent_of_a_dynamic_programming_optimum(name):
     length, gradients, limits = DP_CASES[name]
     limits = limits or (np.array([0.0, length]), np.array([V80]))

@@ -1,4 +1,4 @@
-"""The planned-curve report (railpilot.onboard.report), issue 10 item 8."""
+"""The planned-curve report (railpilot.onboard.report)."""
 
 import numpy as np
 import pytest
@@ -7,14 +7,14 @@ from numpy.testing import assert_allclose
 from railpilot.errors import ConfigError
 from railpilot.link.codec import decode_body, encode_body
 from railpilot.link.messages import PlannedCurve
-from railpilot.onboard.planner import PlannedCurve as Plan
+from railpilot.onboard.planner import SpeedPlan
 from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 
 
 def constant_speed_plan(length_m=1000.0, speed=10.0):
     s = np.linspace(0.0, length_m, 101)
     v = np.full(s.shape, speed)
-    return Plan(s, v, length_m / speed, 0.0, 0.0, None, None, None, True)
+    return SpeedPlan(s, v, length_m / speed, 0.0, 0.0, None, None, None, True)
 
 
 def test_remaining_time_of_a_constant_speed_plan():
@@ -30,7 +30,7 @@ def test_remaining_time_is_numpys_interpolation_to_the_bit():
     s = np.cumsum(rng.uniform(1.0, 30.0, 800))
     v = rng.uniform(0.0, 25.0, s.size)
     v[100:140] = 0.0  # a stretch at rest takes no time
-    plan = Plan(s, v, 1.0, 0.0, 0.0, None, None, None, True)
+    plan = SpeedPlan(s, v, 1.0, 0.0, 0.0, None, None, None, True)
     elapsed = plan.elapsed_s
     points = np.concatenate([rng.uniform(s[0] - 50.0, s[-1] + 50.0, 2000), s])
     for x in points:

@@ -1,4 +1,4 @@
-"""Supervision curves (railpilot.onboard.supervision), issue 10 item 3.
+"""Supervision curves (railpilot.onboard.supervision).
 
 The deceleration curve against the kinematics of a constant deceleration, the intervention
 point against a pure dead-time brake (exact: the dead time's distance) and against the

@@ -1,4 +1,4 @@
-"""Target point safety distance (railpilot.onboard.target_point), issue 10 item 4.
+"""Target point safety distance (railpilot.onboard.target_point).
 
 Each term's effect on its own, against the formula worked by hand (docs/onboard.md).
 """

@@ -71,6 +71,7 @@ def test_a_missing_timetable_file_exits_2_and_writes_nothing(tmp_path, capsys):
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.slow
 def test_two_sections_of_the_shipped_timetable(capsys):
     import json
 

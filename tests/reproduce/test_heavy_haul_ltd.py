@@ -7,6 +7,9 @@ import pytest
 
 from railpilot.reproduce import heavy_haul_ltd
 
+# the heavy-haul train's longitudinal dynamics, reproduced
+pytestmark = pytest.mark.slow
+
 
 @pytest.fixture(scope="module")
 def reproduction(tmp_path_factory):

@@ -10,9 +10,12 @@ import copy
 import numpy as np
 import pytest
 
-from railpilot.cosim.scenario import load_scenario
+from railpilot.cosim.scenario import load_line_scenario
 from railpilot.errors import ConfigError
 from railpilot.reproduce import REPRODUCTIONS, base, line_day
+
+# the short line day, run twice
+pytestmark = pytest.mark.slow
 
 #: long enough for the first loaded train to run a section (about 15 s for both runs)
 UNTIL_S = 1800.0
@@ -149,7 +152,7 @@ def test_both_figures_are_written(section):
 
 
 def test_a_stand_away_from_the_stops_is_found():
-    scenario = load_scenario(line_day.scenario_path())
+    scenario = load_line_scenario(line_day.scenario_path())
     service = scenario.services[0]
     line = scenario.line
     origin = line.station(service.stops[0].station).stop_m(service.direction)

@@ -12,14 +12,17 @@ import copy
 import pytest
 
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import load_scenario
+from railpilot.cosim.scenario import load_line_scenario
 from railpilot.reproduce import REPRODUCTIONS, line_live
 from railpilot.reproduce.base import find_example
+
+# a line run for its report
+pytestmark = pytest.mark.slow
 
 
 @pytest.fixture(scope="module")
 def kpis() -> dict:  # type: ignore[type-arg]
-    scenario = load_scenario(find_example(line_live.SCENARIO_FILE))
+    scenario = load_line_scenario(find_example(line_live.SCENARIO_FILE))
     return run_line(scenario, until_s=1200.0).kpis()
 
 

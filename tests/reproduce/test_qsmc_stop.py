@@ -1,6 +1,6 @@
 """Paper 002's reproduction (railpilot.reproduce.qsmc_stop) at 40 runs per sweep.
 
-The payload is what ``railpilot reproduce qsmc-stop --json`` prints (issue 4 item 5);
+The payload is what ``railpilot reproduce qsmc-stop --json`` prints;
 the paper's claim itself (every run within 0.30 m over 1,000 runs) is the
 reproduction's job, not a unit test's: here the shape, the bookkeeping and the
 determinism of what it reports.
@@ -13,6 +13,9 @@ import pytest
 
 from railpilot.commands._common import print_json
 from railpilot.reproduce import qsmc_stop
+
+# the QSMC stop scenario with both controllers
+pytestmark = pytest.mark.slow
 
 RUNS = 40
 SWEEP_KEYS = {

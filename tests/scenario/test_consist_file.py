@@ -20,6 +20,7 @@ from numpy.testing import assert_allclose
 from railpilot.errors import ScenarioError
 from railpilot.scenario.consist_file import (
     ConsistError,
+    consist_preset,
     consist_to_toml,
     library_draft_gears,
     library_types,
@@ -28,7 +29,7 @@ from railpilot.scenario.consist_file import (
     write_consist,
 )
 from railpilot.units import G_MPS2
-from railpilot.vehicle.consist import CONSIST_PRESETS, Consist, Vehicle, consist_preset
+from railpilot.vehicle.consist import CONSIST_PRESETS, Consist, Vehicle
 from railpilot.vehicle.coupler import DraftGear
 from railpilot.vehicle.traction import HXD1_LENGTH_M, HXD1_MASS_KG, hxd1_locomotive
 

@@ -49,7 +49,7 @@ def test_minimal_file_loads_with_units_converted(tmp_path):
 
 
 def test_a_file_naming_only_what_is_required_gives_exactly_the_dataclass_defaults(tmp_path):
-    # defaults live in the typed config dataclasses only (issue 9): the loader passes on
+    # defaults live in the typed config dataclasses only: the loader passes on
     # what the file says and nothing else
     path = tmp_path / "minimal.toml"
     path.write_text('name = "minimal"\n')
@@ -292,7 +292,7 @@ def test_malformed_toml_is_a_scenario_error(tmp_path):
 
 def test_a_brake_models_file_keys_are_its_config_fields():
     # no per-model reader in the loader: a registered model's dataclass fields are its keys
-    # (issue 9: adding a brake touches its module and the registry only)
+    # (adding a brake touches its module and the registry only)
     from railpilot.brakes.brake_pipe import BrakePipeBrake
     from railpilot.brakes.locomotive_drive import LocomotiveDrive
 

@@ -270,5 +270,6 @@ def test_an_error_names_the_key_and_value_as_the_file_writes_them(
         {("reference", "start_km"): 2.0, ("reference", "stop_km"): 29.5},
     ],
 )
+@pytest.mark.slow
 def test_drives_within_the_profile_s_reach_load(changes: dict[tuple[Any, ...], Any]) -> None:
     _load_changed("heavy_haul_run", changes)

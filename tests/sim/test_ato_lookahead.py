@@ -1,5 +1,5 @@
 """The ATO's traction clamp follows the drive's envelope, and its gradient feed-forward can
-look ahead (``ato.preview_s``): issue 9's heavy-haul run, docs/heavy-haul-vehicle.md.
+look ahead (``ato.preview_s``): the heavy-haul run of docs/heavy-haul-vehicle.md.
 
 Open-loop 'controllers' (a constant command) make the ATO's own additions visible in the
 recorded command: the clamp, and the resistance feed-forward the ATO adds to every command.

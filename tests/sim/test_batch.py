@@ -201,6 +201,7 @@ def test_run_montecarlo_refuses_a_bad_spec_before_running():
 # --- Dask -----------------------------------------------------------------------------
 
 
+@pytest.mark.slow
 def test_dask_local_cluster_gives_the_local_numbers_bit_for_bit(reference_sweep):
     distributed = pytest.importorskip("dask.distributed")
     # worker processes: the scenario and spec really are pickled to another interpreter

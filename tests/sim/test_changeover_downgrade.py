@@ -1,4 +1,4 @@
-"""A train that speeds back above the changeover speed on a down-grade (issue 9 item 7a).
+"""A train that speeds back above the changeover speed on a down-grade.
 
 Paper 000's clean scenario with a 60 per mille down-grade over the last 4 m: both
 controllers brake the train below 6 km/h, the grade pushes it back above, and it falls

@@ -11,6 +11,7 @@ import pytest
 
 from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.errors import ConfigError
+from railpilot.scenario.consist_file import consist_preset
 from railpilot.scenario.consist_scenario import consist_scenario_from_mapping
 from railpilot.scenario.loader import read_toml
 from railpilot.sim.consist_run import (
@@ -21,7 +22,6 @@ from railpilot.sim.consist_run import (
     recharge_margins_s,
     run_consist,
 )
-from railpilot.vehicle.consist import consist_preset
 from railpilot.vehicle.line import Line, Segment
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"

@@ -1,4 +1,4 @@
-"""Issue 9 item 5: the simulator drives (traction, grades over the train's length, a run).
+"""The simulator drives (traction, grades over the train's length, a run).
 
 Each check is against an analytic solution: the closed-form motion under a constant
 tractive force against Davis resistance (tests/vehicle/analytic.py, itself checked against
@@ -69,6 +69,7 @@ def drive_scenario(line: Line | None = None, **sim: float) -> Scenario:
     return replace(scenario, reference=ref, ato=replace(scenario.ato, davis=(0.0, 0.0, 0.0)))
 
 
+@pytest.mark.slow
 def test_acceleration_under_full_traction_follows_the_closed_form() -> None:
     # from rest at the starting effort F0 (constant-force region: v below the base
     # speed, 45.5 km/h for the HXD1), against Davis resistance:
@@ -125,6 +126,7 @@ def heavy_haul():  # type: ignore[no-untyped-def]
     return scenario, simulate(scenario)
 
 
+@pytest.mark.slow
 def test_the_heavy_haul_run_starts_cruises_holds_the_descent_and_stops(heavy_haul) -> None:  # type: ignore[no-untyped-def]
     _, result = heavy_haul
     m = result.metrics

@@ -1,6 +1,6 @@
 """The simulator's train integration (railpilot.sim.engine via sim.run) against physics.
 
-Issue 2 item 9: constant-force stop distance against v0^2 / (2 a) and coast-down
+Constant-force stop distance against v0^2 / (2 a) and coast-down
 with Davis resistance against scipy's solve_ivp, within 0.5 %.
 
 How the controller is taken out of the loop through the public API: a SMARC with

@@ -45,6 +45,7 @@ def _loop_cache_stats(*args: str) -> dict[str, int]:
         pytest.param((f"{EXAMPLE}:SpeedPositionTracker",), id="user-python"),
     ],
 )
+@pytest.mark.slow
 def test_a_new_process_loads_the_loop_instead_of_compiling_it(controller: tuple[str, ...]) -> None:
     _loop_cache_stats(str(PAPER002), *controller)  # fills the cache if it is empty
     assert _loop_cache_stats(str(PAPER002), *controller) == {"hits": 1, "misses": 0}

@@ -1,4 +1,4 @@
-"""Issue 9 items 1-3: one description of a run, registries, your own controller.
+"""One description of a run, registries, your own controller.
 
 What runs is what the user passed: a Python controller's own commands drive the plant, a
 built-in's subclass that overrides ``update`` runs its ``update`` (not the built-in
@@ -61,6 +61,7 @@ class Recorder:
         return command
 
 
+@pytest.mark.slow
 def test_the_python_controllers_commands_are_what_drives_the_plant(scenario) -> None:  # type: ignore[no-untyped-def]
     # no resistance model in the ATO, so its feed-forward adds nothing to the command
     s = replace(scenario, ato=replace(scenario.ato, davis=(0.0, 0.0, 0.0)))

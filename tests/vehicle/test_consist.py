@@ -11,14 +11,14 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from numpy.testing import assert_allclose, assert_array_equal
 
-from bad_values import BAD
+from bad_values import BAD, every_bad_value
 from railpilot.errors import ConfigError
+from railpilot.scenario.consist_file import consist_preset
 from railpilot.units import G_MPS2
 from railpilot.vehicle.consist import (
     CONSIST_PRESETS,
     Consist,
     Vehicle,
-    consist_preset,
     describe,
 )
 from railpilot.vehicle.traction import hxd1_locomotive
@@ -171,11 +171,9 @@ CONSIST_FIELDS = [f.name for f in dataclasses.fields(Consist)]
 ALLOWED = {("name", "str"), ("locomotive", "None")}
 
 
-@pytest.mark.parametrize(
-    ("field", "value"),
-    [(f, v) for f in VEHICLE_FIELDS for i, v in BAD if (f, i) not in ALLOWED],
-)
-def test_a_bad_vehicle_argument_gets_a_short_config_error_naming_it(field, value):
+@every_bad_value([(f, kind) for f in VEHICLE_FIELDS for kind, _ in BAD if (f, kind) not in ALLOWED])
+def test_a_bad_vehicle_argument_gets_a_short_config_error_naming_it(case, value):
+    field, _ = case
     with pytest.raises(ConfigError) as info:
         dataclasses.replace(wagon(), **{field: value})
     message = str(info.value)
@@ -183,11 +181,9 @@ def test_a_bad_vehicle_argument_gets_a_short_config_error_naming_it(field, value
     assert len(message) < 400, message
 
 
-@pytest.mark.parametrize(
-    ("field", "value"),
-    [(f, v) for f in CONSIST_FIELDS for i, v in BAD if (f, i) not in ALLOWED],
-)
-def test_a_bad_consist_argument_gets_a_short_config_error_naming_it(field, value):
+@every_bad_value([(f, kind) for f in CONSIST_FIELDS for kind, _ in BAD if (f, kind) not in ALLOWED])
+def test_a_bad_consist_argument_gets_a_short_config_error_naming_it(case, value):
+    field, _ = case
     good = Consist("c", (lead(), wagon()))
     with pytest.raises(ConfigError) as info:
         dataclasses.replace(good, **{field: value})

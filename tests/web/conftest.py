@@ -15,9 +15,9 @@ from typing import Any
 
 import pytest
 
+from railpilot.cosim.demo_ground import DemoGround
 from railpilot.web.app import ThreadedServer, create_app, server_config
 from railpilot.web.browser import CHROMIUM, CHROMIUM_FLAGS
-from railpilot.web.fake import FakeGround
 
 #: The dispatcher token of every test.
 TOKEN = "test-dispatcher-token-0123456789"
@@ -59,19 +59,19 @@ def browser_context_args(browser_context_args: dict[str, Any]) -> dict[str, Any]
 
 
 @pytest.fixture
-def ground() -> FakeGround:
-    """The heavy-haul line with 24 trains, at the fake's start."""
-    return FakeGround(24, seed=0)
+def ground() -> DemoGround:
+    """The heavy-haul line with 24 trains, at the demo ground's start."""
+    return DemoGround(24, seed=0)
 
 
 @dataclass
 class Served:
     url: str
-    ground: FakeGround
+    ground: DemoGround
 
 
 @pytest.fixture
-def served(ground: FakeGround) -> Iterator[Served]:
+def served(ground: DemoGround) -> Iterator[Served]:
     """The dashboard over ``ground`` on 127.0.0.1, an ephemeral port, in a thread."""
     with serve(ground) as url:
         yield Served(url, ground)
@@ -100,10 +100,10 @@ STARTING = "ground starting: restoring from the store"
 
 
 class StartingGround:
-    """The fake ground behind a source that cannot be shown until ``ready`` is set, as the
+    """The demo ground behind a source that cannot be shown until ``ready`` is set, as the
     live ground's until it has restored from its store (``ServerSource.starting``)."""
 
-    def __init__(self, ground: FakeGround) -> None:
+    def __init__(self, ground: DemoGround) -> None:
         self.ground = ground
         self.ready = False
 

@@ -14,16 +14,16 @@ from pathlib import Path
 import pytest
 from playwright.sync_api import Locator, Page, expect
 
+from railpilot.cosim.demo_ground import DemoGround
 from railpilot.link.ground import TsrState
-from railpilot.web.fake import FakeGround
 
 from .conftest import STARTING, TOKEN, Served, StartingGround, needs_chromium, serve
 
-pytestmark = needs_chromium
+pytestmark = [needs_chromium, pytest.mark.slow]
 
 #: Longest wait for the page to show what the ground holds [ms].
 SHOWN_MS = 10_000
-#: The train whose link failed in the fake (conftest.ground): nothing reaches it.
+#: The train whose link failed on the demo line (conftest.ground): nothing reaches it.
 NO_LINK = 1016
 
 
@@ -140,7 +140,7 @@ def test_screenshot_of_the_line_with_at_least_20_trains(
 
 
 def test_the_page_says_the_ground_is_starting_then_goes_live_by_itself(
-    ground: FakeGround, page: Page
+    ground: DemoGround, page: Page
 ) -> None:
     source = StartingGround(ground)
     with serve(source) as url:
@@ -157,7 +157,7 @@ def test_the_page_says_the_ground_is_starting_then_goes_live_by_itself(
 def test_the_graph_fits_its_distance_axis_to_the_trains_until_asked_for_the_whole_line(
     page: Page, tmp_path: Path
 ) -> None:
-    ground = FakeGround(2, seed=0)  # one train each way, both mid-line
+    ground = DemoGround(2, seed=0, warmup_s=1800.0)  # one train each way, both mid-line
     stations = [st.name for st in ground.line.stations]
     with serve(ground) as url:
         page.goto(url)
@@ -181,7 +181,7 @@ def test_the_graph_fits_its_distance_axis_to_the_trains_until_asked_for_the_whol
         assert max(ys) - min(ys) > 200.0  # the runs fill the axis, not a strip of it
         page.screenshot(path=tmp_path / "fitted.png", full_page=True)
 
-        # the fake's TSR 1 (km 120-126.5, in force) lies outside the trains' stretch
+        # the demo's TSR 1 (km 120-126.5, in force) lies outside the trains' stretch
         snap = ground.snapshot(ground.now_s())
         tsr = next(t for t in snap["tsrs"] if t["session"] == 1)
         assert tsr["state"] == "ACTIVE" and not km_from < tsr["end_km"] <= km_to
@@ -247,7 +247,7 @@ def test_dispatcher_declares_a_section_fault_and_clears_it_after_confirming(
     _open(page, served)
     _enter_token(page)
     rows = page.locator("#restrictions tbody tr[data-restriction]")
-    expect(rows).to_have_count(1)  # the fake's own section fault
+    expect(rows).to_have_count(1)  # the demo's own section fault
     page.select_option("#fr-reason", "switch_indication_lost")
     page.fill("#fr-start_km", "251")
     page.fill("#fr-end_km", "250")

@@ -13,6 +13,7 @@ from railpilot.reproduce import dashboard
 from .conftest import needs_chromium
 
 
+@pytest.mark.slow
 @pytest.mark.browser
 @needs_chromium
 def test_the_demo_writes_a_screenshot_with_every_train(tmp_path: Path) -> None:

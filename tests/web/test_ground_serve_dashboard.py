@@ -81,6 +81,7 @@ def _request(url: str, body: dict[str, Any] | None = None, token: str = "") -> t
         return exc.code, json.loads(exc.read())
 
 
+@pytest.mark.slow
 def test_serve_prints_the_dashboard_and_its_token_once_and_stops_on_sigterm() -> None:
     cmd = [sys.executable, "-m", "railpilot.cli", *BASE, "--http-port", "0", "--seconds", "60"]
     proc = subprocess.Popen(cmd, stderr=subprocess.PIPE, text=True)

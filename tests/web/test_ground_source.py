@@ -18,7 +18,7 @@ import pytest
 
 from net.helpers import FAST, GROUND_ID, onboard_config
 from railpilot.errors import ConfigError
-from railpilot.ground.retimer import OnlineRetimer, RetimerSettings, SectionCurve, timetabled
+from railpilot.ground.online_retimer import OnlineRetimer, RetimerSettings, SectionCurve, timetabled
 from railpilot.line.loader import load_line
 from railpilot.line.model import UP
 from railpilot.link import GroundConfig, KeyStore, PlannedCurve, TravelDirection, TsrState

@@ -29,7 +29,7 @@ from railpilot.web.ground_source import ServerSource, serve_dashboard
 
 from .conftest import START_DEADLINE_S, TOKEN, TSR_FORM, needs_chromium
 
-pytestmark = needs_chromium
+pytestmark = [needs_chromium, pytest.mark.slow]
 
 #: Longest wait for the page to show what the ground holds [ms] (acknowledgements travel
 #: over TCP and are resent every 0.2 s: this is a deadline, not an expected time).

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 import pytest
 from starlette.testclient import TestClient
 
+from railpilot.cosim.demo_ground import DemoGround
 from railpilot.errors import ConfigError
 from railpilot.line.loader import load_line
 from railpilot.line.model import DOWN, UP
@@ -20,9 +21,11 @@ from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TravelDirection, TsrSet
 from railpilot.web import view
 from railpilot.web.app import Push, _dumps, create_app, dumps_sliced
-from railpilot.web.fake import FakeGround
 
 from .conftest import TOKEN
+
+# each test builds the 24-train demo ground (about 2.6 s of warm-up on the real ground)
+pytestmark = pytest.mark.slow
 
 LENGTH_M = 2600.0
 
@@ -90,7 +93,7 @@ def test_sliced_json_is_the_same_text(obj: object) -> None:
 
 
 def test_sliced_json_of_a_snapshot_is_the_same_text() -> None:
-    ground = FakeGround(200, seed=1)
+    ground = DemoGround(200, seed=1)
     snapshot = ground.snapshot(ground.now_s())
     text, _ = asyncio.run(dumps_sliced(snapshot, slice_items=7))
     assert text == _dumps(snapshot)
@@ -104,7 +107,7 @@ def test_sliced_json_refuses_nan_as_the_page_would() -> None:
 
 @pytest.fixture
 def client() -> Iterator[TestClient]:
-    app = create_app(FakeGround(24, seed=0), token=TOKEN, allowed_hosts=["testserver"])
+    app = create_app(DemoGround(24, seed=0), token=TOKEN, allowed_hosts=["testserver"])
     with TestClient(app) as c:
         yield c
 

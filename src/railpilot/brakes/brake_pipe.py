@@ -4,8 +4,8 @@ The ATO's command sets the brake-pipe reduction at the locomotive. The first cha
 pressure travels down the train as a wave; the full reduction follows more slowly, because
 the air must flow along the pipe and out through the driver's brake valve; and each part of
 the train fills its brake cylinders with its own lag. So the rear of a 1,600 m train brakes
-seconds after the front, and completes its application tens of seconds later (issue 9,
-item 6). Model, sources and validation: docs/heavy-haul-brake.md.
+seconds after the front, and completes its application tens of seconds later. Model,
+sources and validation: docs/heavy-haul-brake.md.
 
 Model (``n`` groups of wagons, ``j = 0 .. n-1``)::
 

@@ -18,26 +18,6 @@ from railpilot.errors import ConfigError
 if TYPE_CHECKING:
     from railpilot.cosim.line_run import LineResult
 
-#: the KPIs a sweep gives the distribution of (dotted paths into ``LineResult.kpis()``)
-SWEPT = (
-    "conformity_pct.mean_end_to_end",
-    "conformity_pct.mean_abs_section",
-    "energy_kwh",
-    "energy_traction_against_air_kwh",
-    "punctuality.within_3_min_pct",
-    "punctuality.mean_delay_s",
-    "punctuality.max_delay_s",
-    "red_signal_stops",
-    "tsr_violations",
-    "target_points_passed",
-    "overspeeds",
-    "max_overspeed_kmh",
-    "tsr_applied_twice",
-    "link.link_failures",
-    "link.connects",
-    "realtime_factor",
-)
-
 
 def register(subparsers: argparse._SubParsersAction) -> None:
     line = subparsers.add_parser(
@@ -121,9 +101,9 @@ def register(subparsers: argparse._SubParsersAction) -> None:
 def run_knock_on(args: argparse.Namespace) -> int:
     """``railpilot line knock-on``: one event's cost to each train (cosim/knock_on.py)."""
     from railpilot.cosim.knock_on import knock_on
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_line_scenario(args.scenario)
     if args.seed is not None:
         _check_seed(args.seed)
     result = knock_on(scenario, args.event, seed=args.seed)
@@ -160,9 +140,9 @@ def _shown(value: float | None) -> str:
 def run_live_command(args: argparse.Namespace) -> int:
     """``railpilot line run``: the scenario live (cosim/live.py)."""
     from railpilot.cosim.live import MAX_SPEEDUP, LiveOptions, run_live
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_line_scenario(args.scenario)
     if args.seed is not None:
         _check_seed(args.seed)
     if not (math.isfinite(args.speedup) and 1.0 <= args.speedup <= MAX_SPEEDUP):
@@ -211,9 +191,9 @@ def run_live_command(args: argparse.Namespace) -> int:
 
 def run(args: argparse.Namespace) -> int:
     from railpilot.cosim.line_run import run_line
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
-    scenario = load_scenario(args.scenario)
+    scenario = load_line_scenario(args.scenario)
     seed = scenario.seed if args.seed is None else args.seed
     if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:
         raise ConfigError("--runs", args.runs, "a number of runs in [1, 100000]")
@@ -258,75 +238,43 @@ def _check_seed(seed: int, runs: int = 1) -> None:
 def _sweep_run(path: str, seed: int) -> dict[str, Any]:
     """One seed of a sweep (in a worker: it reads the file itself)."""
     from railpilot.cosim.line_run import run_line
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
-    return run_line(load_scenario(path), seed=seed).kpis()
+    return run_line(load_line_scenario(path), seed=seed).kpis()
 
 
 def sweep(
     path: Path, seed: int, runs: int, scheduler: str | None
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
-    """``runs`` seeds from ``seed`` on: the spread of each KPI (:data:`SWEPT`), and each
-    run's KPIs in the order of its seed."""
+    """``runs`` seeds from ``seed`` on, fanned out on this machine's cores or the Dask
+    cluster at ``scheduler`` (cluster.py): the spread of each swept KPI (cosim/kpis.py
+    ``sweep_summary``), and each run's KPIs in the order of its seed."""
+    from railpilot.cluster import fan_out
+    from railpilot.cosim.kpis import sweep_summary
+
     seeds = list(range(seed, seed + runs))
     started = time.perf_counter()
-    if scheduler is None:
-        import multiprocessing
-        import os
-        from concurrent.futures import ProcessPoolExecutor, as_completed
-
-        workers = min(os.cpu_count() or 1, runs)
-        context = multiprocessing.get_context("spawn")
-        with ProcessPoolExecutor(workers, mp_context=context) as pool:
-            futures = {pool.submit(_sweep_run, str(path), s): s for s in seeds}
-            finished = ((futures[f], f.result()) for f in as_completed(futures))
-            by_seed = _collect(finished, runs, started)
-    else:
-        from dask.distributed import as_completed as dask_completed
-
-        from railpilot.cluster import dask_client
-
-        with dask_client(scheduler) as client:
-            submitted = client.map(_sweep_run, [str(path)] * runs, seeds, pure=False)
-            seed_of = {f.key: s for f, s in zip(submitted, seeds, strict=True)}
-            finished = ((seed_of[f.key], f.result()) for f in dask_completed(submitted))
-            by_seed = _collect(finished, runs, started)
+    calls = [(str(path), s) for s in seeds]
+    finished = ((seeds[k], kpis) for k, kpis in fan_out(_sweep_run, calls, scheduler))
+    by_seed = _collect(finished, runs, started)
     results = [by_seed[s] for s in seeds]
     out: dict[str, Any] = {
         "scenario": results[0]["scenario"],
         "runs": runs,
         "seeds": [seeds[0], seeds[-1]],
         "wall_s": round(time.perf_counter() - started, 2),
-        "kpis": {},
-        "runs_with_tsr_violations": sum(1 for r in results if r["tsr_violations"]),
-        "runs_with_target_points_passed": sum(1 for r in results if r["target_points_passed"]),
-        "runs_with_overspeeds": sum(1 for r in results if r["overspeeds"]),
+        **sweep_summary(seeds, results),
     }
-    for key in SWEPT:
-        found = [
-            (v, s) for s, r in zip(seeds, results, strict=True) if (v := _dig(r, key)) is not None
-        ]
-        if found:
-            values = sorted(v for v, _ in found)
-            out["kpis"][key] = {
-                "min": values[0],
-                "p5": _quantile(values, 0.05),
-                "median": _quantile(values, 0.5),
-                "p95": _quantile(values, 0.95),
-                "max": values[-1],
-                "mean": round(sum(values) / len(values), 4),
-                # which runs to look at again: the first seed giving each extreme
-                "min_seed": min(found)[1],
-                "max_seed": max(found, key=lambda pair: (pair[0], -pair[1]))[1],
-            }
     return out, results
 
 
 def _write_sweep(folder: Path, out: dict[str, Any], results: list[dict[str, Any]]) -> list[str]:
-    """``runs.csv`` (a row per seed: the seed and each KPI of :data:`SWEPT`, empty where
-    the run has none) and ``sweep.json`` (``out`` as printed, these two files listed) in
-    ``folder``; returns their paths."""
+    """``runs.csv`` (a row per seed: the seed and each swept KPI, cosim/kpis.py ``swept``,
+    empty where the run has none) and ``sweep.json`` (``out`` as printed, these two files
+    listed) in ``folder``; returns their paths."""
     import csv
+
+    from railpilot.cosim.kpis import dig, swept
 
     folder.mkdir(parents=True, exist_ok=True)
     table = folder / "runs.csv"
@@ -334,9 +282,10 @@ def _write_sweep(folder: Path, out: dict[str, Any], results: list[dict[str, Any]
     files = [str(table), str(summary)]
     with table.open("w", newline="", encoding="utf-8") as f:
         writer = csv.writer(f)
-        writer.writerow(["seed", *SWEPT])
+        paths = swept()
+        writer.writerow(["seed", *paths])
         for run in results:
-            values = (_dig(run, key) for key in SWEPT)
+            values = (dig(run, key) for key in paths)
             writer.writerow([run["seed"], *("" if v is None else v for v in values)])
     summary.write_text(json_text({**out, "files": files}), encoding="utf-8")
     return files
@@ -377,36 +326,21 @@ def _collect(
     finished: Iterator[tuple[int, dict[str, Any]]], runs: int, started: float
 ) -> dict[int, dict[str, Any]]:
     """Each run's KPIs by seed, saying on stderr how far a long sweep is as each one ends."""
+    from railpilot.cosim.kpis import progress_line
+
     by_seed: dict[int, dict[str, Any]] = {}
     for seed, kpis in finished:
         by_seed[seed] = kpis
         log(
-            f"seed {seed}: {kpis['tsr_violations']} TSR violations,"
-            f" {kpis['target_points_passed']} target points passed,"
-            f" {kpis['overspeeds']} overspeeds,"
-            f" {kpis['energy_kwh']} kWh ({len(by_seed)}/{runs},"
+            f"seed {seed}: {progress_line(kpis)} ({len(by_seed)}/{runs},"
             f" {time.perf_counter() - started:.0f} s)"
         )
     return by_seed
 
 
-def _dig(obj: dict[str, Any], dotted: str) -> float | None:
-    for part in dotted.split("."):
-        if not isinstance(obj, dict) or part not in obj:
-            return None
-        obj = obj[part]
-    return obj if isinstance(obj, int | float) else None
-
-
-def _quantile(sorted_values: list[float], q: float) -> float:
-    """The ``q`` quantile, linear between order statistics (numpy's default)."""
-    pos = q * (len(sorted_values) - 1)
-    low = math.floor(pos)
-    high = min(low + 1, len(sorted_values) - 1)
-    return round(sorted_values[low] + (sorted_values[high] - sorted_values[low]) * (pos - low), 4)
-
-
 def _print_text(out: dict[str, Any]) -> None:
+    from railpilot.cosim.kpis import KPIS, text_lines
+
     for path in out.get("files", []):
         log(f"wrote {path}")
     if "kpis" in out:
@@ -416,24 +350,12 @@ def _print_text(out: dict[str, Any]) -> None:
                 f"  {key:34s} min {stats['min']:>10} median {stats['median']:>10}"
                 f" max {stats['max']:>10}"
             )
-        print(f"  runs with TSR violations: {out['runs_with_tsr_violations']}")
-        print(f"  runs with target points passed: {out['runs_with_target_points_passed']}")
-        print(f"  runs with overspeeds: {out['runs_with_overspeeds']}")
+        for kpi in KPIS:
+            if kpi.count_runs_not_zero:
+                print(f"  runs with {kpi.label}: {out[f'runs_with_{kpi.name}']}")
         return
     print(
         f"{out['scenario']} (seed {out['seed']}): {len(out['trains'])} trains, {out['sim_s']:.0f} s"
     )
-    conformity = out["conformity_pct"]
-    print(f"  conformity end to end: mean {conformity['mean_end_to_end']} %")
-    line = f"  energy: {out['energy_kwh']} kWh"
-    if "baseline_energy_kwh" in out:
-        line += f" (baseline {out['baseline_energy_kwh']} kWh)"
-    print(line)
-    on_time = out["punctuality"]
-    print(
-        f"  arrivals on time within 3 min: {on_time['within_3_min_pct']} % of"
-        f" {on_time['arrivals']} (largest delay {on_time['max_delay_s']} s)"
-    )
-    for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "overspeeds"):
-        print(f"  {key.replace('_', ' ')}: {out[key]}")
-    print(f"  link failures: {out['link']['link_failures']}, connects: {out['link']['connects']}")
+    for line in text_lines(out):
+        print(line)

@@ -16,7 +16,6 @@ import json
 import logging
 import math
 import os
-import re
 import secrets
 import signal
 import socket
@@ -29,8 +28,12 @@ from typing import Any, TextIO
 
 from railpilot.commands._common import json_line, log, print_json
 from railpilot.errors import ConfigError
+from railpilot.extras import require as require_extra
 from railpilot.link.config import REPLAY_WINDOW_S
-from railpilot.link.errors import LinkConfigError, LinkError
+from railpilot.link.decode import FrameReport
+from railpilot.link.decode_report import report_dict, report_text
+from railpilot.link.errors import LinkConfigError
+from railpilot.link.hex_text import DecodeInputError, holds_frame_start, looks_hex, parse_hex
 from railpilot.units import kmh_to_mps, mps_to_kmh
 
 DEFAULT_PORT = 7400
@@ -490,12 +493,12 @@ def _register_link(subparsers: argparse._SubParsersAction) -> None:
 
 
 def _ground_serve(args: argparse.Namespace) -> int:
+    from railpilot.gc_tuning import freeze_startup
+    from railpilot.ground.assembly import GroundParts
     from railpilot.ground.store import StoreError, is_postgres_url, open_store, redact_dsn
-    from railpilot.heap import freeze_startup
     from railpilot.link import GroundConfig
     from railpilot.net.admin import AdminServer
-    from railpilot.net.dispatch_host import DispatchHost
-    from railpilot.net.server import GroundServer
+    from railpilot.net.ground_app import live_ground
 
     keys = _keys(args.keys, args.no_auth)
     config = GroundConfig(ground_id=args.ground_id, require_auth=keys is not None)
@@ -526,16 +529,13 @@ def _ground_serve(args: argparse.Namespace) -> int:
     async def main() -> None:
         nonlocal started
         stop = await _stop_on_signals()
-        server = GroundServer(
-            config,
-            keys,
+        dispatch = live_ground(
+            GroundParts(config, line, keys, store),
             host=args.host,
             port=args.port,
             replay_window_s=args.replay_window_s,
-            # server.py annotates the SQLite Store; it uses only GroundStore's methods
-            store=store,
         )
-        dispatch = DispatchHost(server, line)
+        server = dispatch.server
         http = None
         admin = None
         try:
@@ -564,7 +564,7 @@ def _ground_serve(args: argparse.Namespace) -> int:
                 _print_dashboard(args, http[0].port, *dashboard)
             started = True
             # Everything alive now lives as long as the process: out of the collector's
-            # reach, so that its full collections stop walking it (railpilot/heap.py).
+            # reach, so that its full collections stop walking it (railpilot/gc_tuning.py).
             freeze_startup()
             if args.seconds is not None:
                 asyncio.get_running_loop().call_later(args.seconds, stop.set)
@@ -619,8 +619,6 @@ def _load_line(name: str) -> Any:
 def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
     """Check the dashboard's options before anything starts: ``(token, generated)``, or
     None without ``--http-port`` (then the other dashboard options are refused)."""
-    from railpilot.web.app import MIN_TOKEN_CHARS
-
     if args.http_port is None:
         for option, value, default in (
             ("--http-host", args.http_host, DEFAULT_HTTP_HOST),
@@ -632,6 +630,9 @@ def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
         return None
     if not 0 <= args.http_port <= 65535:
         raise ConfigError("--http-port", args.http_port, "0..65535 (0: a free one)")
+    require_extra("web", "--http-port", args.http_port)
+    from railpilot.web.app import MIN_TOKEN_CHARS
+
     if args.http_host not in HTTP_HOSTS:
         raise ConfigError(
             "--http-host",
@@ -733,46 +734,10 @@ def _login() -> str:
 
 
 def _print_status(status: dict[str, Any]) -> None:
-    print(
-        f"ground {status['ground_id']} on {status['host']}:{status['port']}: "
-        f"{status['connections']} connections, {status['registered']} registered trains"
-    )
-    for t in status["trains"]:
-        info = t["running_info"]
-        where = (
-            f"km {info['position_km']:.3f} {info['speed_kmh']:.1f} km/h {info['direction']} "
-            f"({info['age_s']:.1f} s ago{'' if info['valid'] else ', INVALID'})"
-            if info
-            else "no running info"
-        )
-        link = f"connected ({t['state']})" if t["connected"] else "not connected"
-        state = "registered" if t["registered"] else "not registered"
-        print(f"  train {t['train_id']} {t['train_number'] or ''}: {link}, {state}, {where}")
-        for session, s in t["tsrs"].items():
-            print(f"    TSR {session}: {s}")
-        for target_id, s in t["target_points"].items():
-            print(f"    target point {target_id}: {s}")
-        for number, s in t["dispatch_commands"].items():
-            print(f"    dispatch command {number}: {s}")
-    dispatch = status.get("dispatch", {})
-    now = time.time()
-    for tsr in dispatch.get("tsrs", []):
-        left = (tsr["valid_until_s"] - now) / 60.0
-        until = f"{left:.0f} min left" if left > 0 else "expired"
-        print(
-            f"TSR {tsr['session']}: {tsr['state']}, km {tsr['start_km']:.3f}-{tsr['end_km']:.3f} "
-            f"{tsr['limit_kmh']:g} km/h, {until}, '{tsr['reason']}' by {tsr['set_by']}, "
-            f"to train(s) {', '.join(map(str, tsr['trains'])) or 'none yet'}"
-        )
-    for r in dispatch.get("restrictions", []):
-        where = r["block"] or f"km {r['start_km']:.3f}-{r['end_km']:.3f} ({r['track']})"
-        print(f"restriction {r['id']}: {r['reason']} on {where}")
-    for train, target in dispatch.get("targets", {}).items():
-        if target["km"] is not None:
-            print(
-                f"target point {target['target_id']} for train {train}: km {target['km']:.3f} "
-                f"signal {target['signal']} ({target['reason']})"
-            )
+    from railpilot.net.status_text import status_lines
+
+    for line in status_lines(status, time.time()):
+        print(line)
 
 
 # --- onboard ----------------------------------------------------------------------------------
@@ -899,19 +864,6 @@ def _onboard_values(args: argparse.Namespace) -> None:
 # --- link tools -------------------------------------------------------------------------------
 
 
-class DecodeInputError(LinkError, ValueError):
-    """The input of a link tool cannot be read as asked: an unreadable file or bad hex text.
-
-    The message names the input, where the problem is (line and column, both 1-based, for
-    hex text) and what is allowed there; it is raised before anything is printed.
-    """
-
-    def __init__(self, field: str, problem: str, what_next: str = "nothing was decoded") -> None:
-        self.field = field
-        self.problem = problem
-        super().__init__(f"{field}: {problem}; {what_next}")
-
-
 def _read_input(name: str) -> bytes:
     if name == "-":
         return sys.stdin.buffer.read()
@@ -921,106 +873,11 @@ def _read_input(name: str) -> bytes:
         raise DecodeInputError(name, f"not a readable file ({exc.strerror})") from None
 
 
-#: What the proxy's --inject takes for hex (see _looks_hex).
-_HEX_CHARS = frozenset(b"0123456789abcdefABCDEF \t\r\n:xX")
-#: Every frame on the wire starts with the header byte 0x7E and the version byte 0x01.
-#: Hex text never holds that pair (0x01 is a control character), a raw capture of any
-#: frame always does.
-_FRAME_START = b"\x7e\x01"
-_HEX_ALLOWED = "allowed: 0-9 a-f A-F, whitespace, ':', '0x' prefixes, '#' comments"
+#: Why input without a frame start was read as hex (shown with its first bad character).
 _READ_AS_HEX = (
     "; the input holds no frame start (bytes 0x7E 0x01), so it was read as hex text: "
     "--raw reads it as raw bytes"
 )
-_WHITESPACE = " \t\r\n\f\v"
-_COMMENT = re.compile(r"#[^\n]*")
-#: Anything but a hex digit, whitespace or ':', and an 'x' that does not follow a '0'
-#: starting a token (the '0x' prefix). The text is searched with a '\n' in front.
-_BAD_HEX = re.compile(rf"[^0-9a-fA-F{_WHITESPACE}:xX]|(?<![{_WHITESPACE}:]0)[xX]")
-_PREFIX = re.compile(rf"(?<=[{_WHITESPACE}:])0[xX]")
-_DIGIT_RUN = re.compile(r"[0-9a-fA-F]+")
-_NOT_DIGITS = str.maketrans("", "", _WHITESPACE + ":")
-
-
-def parse_hex(
-    data: bytes, field: str = "input", *, what_next: str = "nothing was decoded", hint: str = ""
-) -> bytes:
-    """Hex text -> bytes.
-
-    Allowed: hex digits, whitespace (space, tab, CR, LF, FF, VT), ':', a '0x' / '0X' prefix
-    at the start of a token, and '#' comments to the end of the line; a UTF-8 byte-order mark
-    is skipped. Digits pair up in order across separators and lines. Anything else, or an
-    odd number of digits, raises :class:`DecodeInputError` naming the line and column
-    (1-based, counted in characters) of the offending character or the unpaired last
-    digit. ``hint`` is appended to the message when the offending character is not
-    printable or is '~' (0x7E), both signs of raw bytes.
-    """
-    # The '\n' in front makes every line, the first included, start after a newline.
-    text = "\n" + data.decode("utf-8-sig", "surrogateescape")
-    if "#" in text:  # blank comments out, keeping every position
-        text = _COMMENT.sub(lambda m: " " * len(m.group()), text)
-    bad = _BAD_HEX.search(text)
-    if bad is not None:
-        i = bad.start()
-        # A control character, a byte that is not UTF-8 or a '~' (0x7E, the header byte)
-        # suggests a raw capture without a frame start: say why it was read as hex.
-        extra = hint if not text[i].isprintable() or text[i] == "~" else ""
-        raise DecodeInputError(
-            field,
-            f"{_position(text, i)}: {_show_char(text[i])} is not a hex digit "
-            f"({_HEX_ALLOWED}){extra}",
-            what_next,
-        )
-    if "x" in text or "X" in text:
-        text = _PREFIX.sub("  ", text)
-    digits = text.translate(_NOT_DIGITS)
-    if len(digits) % 2:
-        raise DecodeInputError(field, _odd_digits(text, len(digits)), what_next)
-    return bytes.fromhex(digits)
-
-
-def _position(text: str, i: int) -> str:
-    """'line L, column C' of ``text[i]`` (``text`` starts with an extra '\n')."""
-    return f"line {text.count(chr(10), 0, i)}, column {i - text.rfind(chr(10), 0, i)}"
-
-
-def _show_char(char: str) -> str:
-    if "\udc80" <= char <= "\udcff":  # a byte that is not UTF-8 (surrogateescape)
-        return f"byte 0x{ord(char) - 0xDC00:02x}"
-    return repr(char)
-
-
-def _odd_digits(text: str, count: int) -> str:
-    """The error for an odd number of digits: where the unpaired last digit is, and where
-    the first run of an odd number of digits starts (often where a digit went missing)."""
-    first_odd: int | None = None
-    last = (0, 0)
-    for run in _DIGIT_RUN.finditer(text):
-        if first_odd is None and len(run.group()) % 2:
-            first_odd = run.start()
-        last = run.span()
-    i = last[1] - 1
-    message = (
-        f"{_position(text, i)}: odd number of hex digits ({count}): {_show_char(text[i])} "
-        "has no partner; expected hex digits in pairs"
-    )
-    if first_odd is not None and first_odd != last[0]:
-        message += (
-            " (digits pair up across separators; the first run of an odd number of digits "
-            f"starts at {_position(text, first_odd)})"
-        )
-    return message
-
-
-def _looks_hex(data: bytes) -> bool:
-    """The proxy's --inject FILE|HEX rule: only hex digits, separators and comments."""
-    body = b"\n".join(line.split(b"#", 1)[0] for line in data.splitlines())
-    return bool(body.strip()) and all(b in _HEX_CHARS for b in body)
-
-
-def _is_raw(data: bytes) -> bool:
-    """The decode tool's rule: raw bytes when the input holds a frame start, else hex text."""
-    return _FRAME_START in data
 
 
 def _link_decode(args: argparse.Namespace) -> int:
@@ -1030,7 +887,7 @@ def _link_decode(args: argparse.Namespace) -> int:
     # refused before anything is read
     keys = _keys(args.keys, no_auth=args.keys is None)
     data = _read_input(args.file)
-    if args.hex or (not args.raw and not _is_raw(data)):
+    if args.hex or (not args.raw and not holds_frame_start(data)):
         # Every input error is raised here, before anything is printed.
         data = parse_hex(data, hint="" if args.hex else _READ_AS_HEX)
     reports = decode_stream(data, keys)  # a generator: one report at a time
@@ -1041,7 +898,7 @@ def _link_decode(args: argparse.Namespace) -> int:
     return 0
 
 
-def _write_json(reports: Iterable[Any], n_bytes: int, out: TextIO) -> None:
+def _write_json(reports: Iterable[FrameReport], n_bytes: int, out: TextIO) -> None:
     """One JSON object, written a frame at a time (one frame per line).
 
     ``{"frames": [...], "count", "ok", "failed", "bytes", "truncated"}``; only one frame's
@@ -1051,7 +908,7 @@ def _write_json(reports: Iterable[Any], n_bytes: int, out: TextIO) -> None:
     truncated = False
     out.write('{\n  "frames": [')
     for report in reports:
-        out.write(f"{',' if count else ''}\n    {json_line(_report_dict(report))}")
+        out.write(f"{',' if count else ''}\n    {json_line(report_dict(report))}")
         count += 1
         ok += report.ok
         truncated = truncated or report.truncated
@@ -1068,86 +925,13 @@ def _write_json(reports: Iterable[Any], n_bytes: int, out: TextIO) -> None:
     out.write("\n}\n")
 
 
-def _write_text(reports: Iterable[Any], out: TextIO) -> None:
+def _write_text(reports: Iterable[FrameReport], out: TextIO) -> None:
     """Each frame as soon as it is decoded: a header line, then a line per verdict."""
     count = 0
     for count, report in enumerate(reports, 1):
-        r = _report_dict(report)
-        h = r["header"]
-        if report.truncated:
-            lines = [f"frame {count}: {report.verdicts[0].detail}"]
-        elif h is None:
-            lines = [f"frame {count}: not a frame"]
-        else:
-            lines = [
-                f"frame {count}: {h['message_type_name']} {h['source_id']} -> "
-                f"{h['destination_id']} seq {h['sequence']} ts {h['timestamp_us']} "
-                f"echo {h['echo_timestamp_us']} key {h['key_id']}: "
-                f"{'OK' if r['ok'] else 'FAILED'}"
-            ]
-        for v in r["verdicts"]:
-            mark = {True: "ok  ", False: "FAIL", None: "skip"}[v["ok"]]
-            lines.append(f"  {mark} {v['check']:<11} {v['detail']}")
-        if r["message"] is not None:
-            lines.append(f"  message {r['message']['type']}: {r['message']['fields']}")
-        out.write("\n".join(lines) + "\n")
+        out.write(report_text(count, report) + "\n")
     if not count:
         out.write("no frames found\n")
-
-
-def _report_dict(report: Any) -> dict[str, Any]:
-    from dataclasses import fields
-
-    from railpilot.link import MessageType
-
-    frame = report.frame
-    header = None
-    if frame is not None:
-        try:
-            name = MessageType(frame.message_type).name
-        except ValueError:
-            name = f"UNKNOWN_0x{frame.message_type:02x}"
-        header = {
-            "message_type": frame.message_type,
-            "message_type_name": name,
-            "source_id": frame.source_id,
-            "destination_id": frame.destination_id,
-            "sequence": frame.sequence,
-            "timestamp_us": frame.timestamp_us,
-            "echo_timestamp_us": frame.echo_timestamp_us,
-            "key_id": frame.key_id,
-            "mac": frame.mac.hex() if frame.mac is not None else None,
-            "crc": f"{frame.crc:08x}",
-            "body": frame.body.hex(),
-        }
-    message = None
-    if report.message is not None:
-        m = report.message
-        message = {
-            "type": type(m).__name__,
-            "fields": {f.name: _jsonable(getattr(m, f.name)) for f in fields(m)},
-        }
-    return {
-        "ok": report.ok,
-        "unstuffed": report.raw.hex() if report.raw is not None else None,
-        "header": header,
-        "message": message,
-        "verdicts": [
-            {"check": v.check.value, "ok": v.ok, "detail": v.detail} for v in report.verdicts
-        ],
-    }
-
-
-def _jsonable(value: Any) -> Any:
-    from dataclasses import asdict, is_dataclass
-
-    if hasattr(value, "name") and hasattr(value, "value"):  # enums
-        return value.name
-    if isinstance(value, tuple):
-        return [_jsonable(v) for v in value]
-    if is_dataclass(value) and not isinstance(value, type):
-        return {k: _jsonable(v) for k, v in asdict(value).items()}
-    return value
 
 
 #: how a refusal of ``link proxy``'s options ends (it is no link endpoint)
@@ -1229,7 +1013,7 @@ def _inject_bytes(value: str) -> bytes:
         mode = None
     if mode is None:
         data = value.encode("utf-8", "surrogateescape")
-        if not _looks_hex(data):
+        if not looks_hex(data):
             raise refused("no such file, and not hex")
     elif not stat.S_ISREG(mode):
         raise refused("it is a directory" if stat.S_ISDIR(mode) else "it is not a regular file")
@@ -1240,16 +1024,23 @@ def _inject_bytes(value: str) -> bytes:
             raise refused(f"the file cannot be read ({exc.strerror})") from None
         if not data:
             raise refused("the file is empty")
-    if not _looks_hex(data):
+    if not looks_hex(data):
         return data
     return parse_hex(data, "--inject", what_next=PROXY_NOT_STARTED)
 
 
 def _link_loadtest(args: argparse.Namespace) -> int:
-    from railpilot.net.loadtest import MAX_SECONDS, LoadtestOptions, check_dashboard, run_loadtest
+    from railpilot.rigs.loadtest import (
+        MAX_SECONDS,
+        LoadtestOptions,
+        check_dashboard,
+        run_loadtest,
+    )
 
     if args.screenshot is not None and not args.dashboard:
         raise ConfigError("--screenshot", str(args.screenshot), "to be given with --dashboard")
+    if args.dashboard:
+        require_extra("web", "--dashboard", "on")
     if not (math.isfinite(args.seconds) and 1.0 <= args.seconds <= MAX_SECONDS):
         raise ConfigError(
             "--seconds", args.seconds, f"a finite number of seconds in [1, {MAX_SECONDS:g}]"

@@ -1,7 +1,7 @@
 """Predictive precise stop: feed-forward, speed feedback and a disturbance observer while
 tracking; a stop predicted by the controller's own brake model while stopping.
 
-Why a controller of our own (issue 10, item 7): a heavy-haul train's brake acts seconds
+Why a controller of our own: a heavy-haul train's brake acts seconds
 late and builds up over seconds more, and its mass is uncertain by tens of per cent. A
 tracking controller that stops by following the speed curve stops where its tracking
 error leaves it; on a 4 s delay and a 6 s lag that is metres to tens of metres. This one

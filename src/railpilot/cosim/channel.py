@@ -24,12 +24,17 @@ from __future__ import annotations
 
 import math
 import random
-from collections.abc import Iterable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, TypeVar
 
 from railpilot.errors import ConfigError, is_finite_number
+from railpilot.schema.channel import ChannelFileTable
+from railpilot.schema.config import given_values
+from railpilot.schema.validate import check
 from railpilot.units import km_post_to_m
+
+T = TypeVar("T")
 
 #: Why a packet did not arrive (the keys of :attr:`ChannelCounters.lost`).
 LOSS_CAUSES = ("random", "dead_zone", "outage")
@@ -110,26 +115,29 @@ class ChannelModel:
                     raise ConfigError(f"channel.{name}[{i}]", item, f"a {kind.__name__}")
 
     @classmethod
-    def from_mapping(cls, table: Mapping[str, Any], where: str = "channel") -> ChannelModel:
-        """A model from a scenario file's ``[channel]`` table: the fields above, with
-        ``dead_zones = [{start_km, end_km}, ...]`` and ``outages = [{start_s, end_s}, ...]``.
-        An unknown key or a bad value is a :class:`ConfigError` naming it."""
-        known = {f for f in cls.__dataclass_fields__}
-        for key in table:
-            if key not in known:
-                allowed = f"one of {', '.join(sorted(known))}"
-                raise ConfigError(f"{where}.{key}", table[key], allowed)
-        lists = ("dead_zones", "outages")
-        fields: dict[str, Any] = {k: v for k, v in table.items() if k not in lists}
-        fields["dead_zones"] = tuple(
-            _item(DeadZone, z, f"{where}.dead_zones[{i}]")
-            for i, z in enumerate(_list(table.get("dead_zones", []), f"{where}.dead_zones"))
+    def from_mapping(
+        cls, table: Mapping[str, Any] | ChannelFileTable, where: str = "channel"
+    ) -> ChannelModel:
+        """A model from a scenario file's ``[channel]`` table (its format:
+        railpilot.schema.channel; a table the line-run file's check has already read is
+        taken as it is). The keys are the fields above, with ``dead_zones = [{start_km,
+        end_km}, ...]`` and ``outages = [{start_s, end_s}, ...]``. An unknown key or a bad
+        value is a :class:`ConfigError` naming it (``channel.dead_zones[2].end_km``)."""
+        checked = check(ChannelFileTable, table, ConfigError, at=(where,))
+        zones = tuple(
+            _entry(DeadZone, (z.start_km, z.end_km), f"{where}.dead_zones[{i}]")
+            for i, z in enumerate(checked.dead_zones)
         )
-        fields["outages"] = tuple(
-            _item(Outage, o, f"{where}.outages[{i}]")
-            for i, o in enumerate(_list(table.get("outages", []), f"{where}.outages"))
+        outages = tuple(
+            _entry(Outage, (o.start_s, o.end_s), f"{where}.outages[{i}]")
+            for i, o in enumerate(checked.outages)
         )
-        return cls(**fields)
+        numbers = given_values(checked, *_NUMBERS)
+        try:
+            return cls(dead_zones=zones, outages=outages, **numbers)
+        except ConfigError as error:  # the dataclass names its fields as "channel.<key>"
+            name = error.field.rpartition(".")[2]
+            raise ConfigError(f"{where}.{name}", error.value, error.allowed) from None
 
     def covered(self, position_m: float | None, t_s: float) -> str | None:
         """Why the radio is down for a train at ``position_m`` [m] at ``t_s`` [s], or None
@@ -141,29 +149,18 @@ class ChannelModel:
         return None
 
 
-def _list(value: Any, where: str) -> Sequence[Any]:
-    if not isinstance(value, list | tuple):
-        raise ConfigError(where, value, "a list of tables")
-    return value
+#: the channel's numbers a file may give (the rest of its keys are its lists)
+_NUMBERS = ("latency_min_s", "latency_median_s", "latency_sigma", "loss")
 
 
-def _item(kind: type[Any], value: Any, where: str) -> Any:
-    if not isinstance(value, Mapping):
-        raise ConfigError(where, value, "a table")
-    names = set(kind.__dataclass_fields__)
-    for key in value:
-        if key not in names:
-            raise ConfigError(f"{where}.{key}", value[key], f"one of {', '.join(sorted(names))}")
-    missing = names - set(value)
-    if missing:
-        raise ConfigError(where, dict(value), f"a table with {', '.join(sorted(missing))}")
+def _entry(kind: Callable[[float, float], T], ends: tuple[float, float], place: str) -> T:
+    """A dead zone or an outage from its two ends; its error names the entry's place in
+    the file (``channel.dead_zones[2].end_km``), where the item names itself by its kind."""
     try:
-        return kind(**value)
+        return kind(*ends)
     except ConfigError as error:
-        # the item names its field by its own kind ("dead_zone.end_km"); the file's
-        # reader needs the entry's place in the file ("channel.dead_zones[2].end_km")
-        name = error.field.rpartition(".")[2]
-        raise ConfigError(f"{where}.{name}", error.value, error.allowed) from None
+        key = error.field.rpartition(".")[2]
+        raise ConfigError(f"{place}.{key}", error.value, error.allowed) from None
 
 
 @dataclass

@@ -1,5 +1,5 @@
 """One train of a whole-line run: the onboard intelligent driving system and the
-simulation core, station to station through its timetable (issue 12; docs/line-run.md).
+simulation core, station to station through its timetable (docs/line-run.md).
 
 A :class:`TrainDriver` is what :class:`~railpilot.cosim.link_sim.LinkSim` asks where a
 train is (its ``Mover``) and what hears the train's link events. It drives each station
@@ -24,7 +24,7 @@ predicted running time moves: onboard/report.py): the time run on the section an
 time still needed, which is its plan's time to go to where the plan ends, and the rest of
 the section at the pace of its running time, if the plan ends short (a red signal, a
 failure). The ground may answer with new running times for the sections ahead
-(``RunningTimes``, ground/retimer.py): each section departed after that is planned for
+(``RunningTimes``, ground/online_retimer.py): each section departed after that is planned for
 the ground's time, and the one being run is planned again for it.
 
 ``advised=False`` is the baseline driver (docs/line-run.md, "The baseline"): no planned
@@ -71,7 +71,7 @@ from railpilot.onboard.drive import (
     train_preset,
 )
 from railpilot.onboard.mrsp import Mrsp, TargetStop, direction_sign, most_restrictive_profile
-from railpilot.onboard.planner import PlannedCurve, fastest
+from railpilot.onboard.planner import SpeedPlan, fastest
 from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.sim.drive_profile import PlannedProfile
@@ -195,7 +195,7 @@ class _Running:
     stopped: bool = False  # at rest short of the station (a red signal, a failure)
     #: the plan tracked: its curve, where it starts and ends [m from the departure stop]
     #: (None: a stand, no plan)
-    plan: tuple[PlannedCurve, float, float] | None = None
+    plan: tuple[SpeedPlan, float, float] | None = None
 
 
 @dataclass
@@ -521,7 +521,7 @@ class TrainDriver:
 
     def _curve(
         self, route: StationRoute, end_s: float, sec: Any, time_s: float, s0: float
-    ) -> PlannedCurve:
+    ) -> SpeedPlan:
         if self.advised:
             return route.plan_to(end_s, sec, time_s, s0)
         return route.fastest_to(end_s, sec)

@@ -11,11 +11,14 @@ speeds km/h, as the line's files and the dashboard give them.
 from __future__ import annotations
 
 import math
+from dataclasses import asdict
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from railpilot.units import KMH_PER_MPS, m_to_km_post
+
+from .kpis import KPIS
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -118,8 +121,9 @@ def section_table(result: LineResult) -> pd.DataFrame:
 
 def events_document(result: LineResult) -> dict[str, Any]:
     """What happened on the line besides the trains' motion: the scenario's events as
-    played, the ground's restarts and re-timings, and every TSR violation, signal passed
-    at red and overspeed the trackside saw (each with its time and train)."""
+    played, the ground's restarts and re-timings, and everything the trackside saw that a
+    KPI counts (cosim/kpis.py ``Kpi.records``: every TSR violation, signal passed at red
+    and overspeed, each with its time and train)."""
     return {
         "scenario": result.scenario.name,
         "seed": result.seed,
@@ -127,7 +131,8 @@ def events_document(result: LineResult) -> dict[str, Any]:
         "events": result.events_on_run_clock(),
         "ground_restarts": result.restarts,
         "retiming": result.retimings(),
-        "tsr_violations": result.tsr_violations,
-        "signals_passed_at_red": result.signals_passed_at_red,
-        "overspeeds": result.overspeeds,
+        **{
+            key: [asdict(seen) for seen in of_run(result)]
+            for key, of_run in (k.records for k in KPIS if k.records is not None)
+        },
     }

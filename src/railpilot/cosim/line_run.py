@@ -1,5 +1,5 @@
 """A whole line in simulated time: trains, ground and radio together, and what it gives
-(paper 001's KPIs; issue 12; docs/line-run.md).
+(paper 001's KPIs; docs/line-run.md).
 
 :func:`run_line` puts a scenario's trains (:class:`~railpilot.cosim.driver.TrainDriver`,
 the onboard driving system and the simulation core) and the ground (the dispatch core and
@@ -9,38 +9,8 @@ train is, the signals' aspects (the cab signal each train sees), and every TSR a
 signal against what the trains do. The KPIs come from what was watched, not from what
 the trains or the ground believe.
 
-KPIs (paper 001 tables 2 and 3; docs/line-run.md "KPIs"):
-
-``conformity_pct``
-    running-time conformity ``(actual - planned) / planned * 100`` per section and end to
-    end (the origin's departure to the destination's arrival), per train and overall.
-``energy_kwh``
-    net traction energy (traction less regeneration) per train and in total;
-    ``baseline_energy_kwh`` is the same day driven by the baseline (no advice, no
-    re-timing: :func:`run_line` with ``advised=False``).
-``energy_traction_against_air_kwh``
-    of the traction energy drawn, what pulled against the air brake still applied (the
-    smaller of the two forces while both act; a loaded train's air brake takes about a
-    minute to release), per train and in total.
-``red_signal_stops``
-    the trains' stops at red signals (at rest short of the station).
-``tsr_violations``
-    (train, TSR) pairs where the head or the tail was in the restricted stretch, during
-    its validity, faster than the limit, at any sample (every second).
-``target_points_passed``
-    signals a train's head passed while the block beyond was held by another train (at
-    red), checked every second against the previous second's occupancy.
-``overspeeds``
-    spells (consecutive samples, every second) in which a moving train was faster than
-    the line's static limit for its category anywhere between its tail and its head
-    (trackside.py ``static_overspeeds``); ``max_overspeed_kmh`` the worst excess, per
-    train and overall.
-``link``
-    the link's counters (frames, losses by cause, resends, timeouts, rejections by check).
-
-Besides paper 001's, the operator's: ``punctuality`` (:func:`punctuality`), every arrival
-at a timetabled stop against the timetable (not against a re-timing), per train
-(``arrival_delays_s``) and as shares on time within 1, 3 and 5 minutes.
+The KPIs (paper 001's and the operator's) are one table, cosim/kpis.py; a result's
+:meth:`LineResult.kpis` is its KPI object.
 """
 
 from __future__ import annotations
@@ -53,14 +23,15 @@ from typing import Any
 
 import numpy as np
 
-from railpilot.ground.retime import STATUS_FALLBACK
+from railpilot.ground.assembly import GroundParts
 from railpilot.ground.store import AuditEntry, Snapshot, Store
-from railpilot.link import KeyStore, OnboardConfig
-from railpilot.net.loadtest import loadtest_keys
+from railpilot.link import GroundConfig, KeyStore, OnboardConfig
+from railpilot.link.keys import seeded_test_keys as loadtest_keys
 
 from .driver import SectionRun, Service, TrainDriver
+from .kpis import ON_TIME_WITHIN_MIN, kpi_object, punctuality
 from .link_sim import LinkSim, SimTrain
-from .retiming import retimer_factory
+from .retimer_factory import retimer_factory
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
 from .trackside import Trackside, TrainSeen, TrainShape, static_overspeeds
 
@@ -73,9 +44,77 @@ RETRY_WHILE_DOWN_S = 10.0
 #: the keys of a dispatcher's operation's answer that are times on the ground's clock [s
 #: since its epoch] (ground/dispatch.py: a TSR set answers when it holds)
 GROUND_CLOCK_KEYS = frozenset({"valid_from_s", "valid_until_s"})
-#: punctuality: an arrival at most this many minutes after the timetable is on time (one
-#: share each; an early arrival is on time)
-ON_TIME_WITHIN_MIN = (1, 3, 5)
+
+__all__ = [
+    "ON_TIME_WITHIN_MIN",
+    "LineResult",
+    "LiveRunInfo",
+    "Overspeed",
+    "SignalPassedAtRed",
+    "TrainRun",
+    "TsrViolation",
+    "line_keys",
+    "line_train",
+    "punctuality",
+    "run_line",
+]
+
+
+@dataclass(frozen=True)
+class TsrViolation:
+    """A train faster than a TSR's limit in its stretch during its validity, as the
+    trackside saw it first for this (train, TSR) pair (trackside.py)."""
+
+    train: int
+    #: the TSR's session
+    session: int
+    #: when [s since the run's start]
+    t_s: float
+    #: which ends of the train were in the stretch: "head", "tail"
+    at: list[str]
+    speed_kmh: float
+    limit_kmh: float
+
+
+@dataclass(frozen=True)
+class SignalPassedAtRed:
+    """A signal a train's head passed while another train held the block beyond (a
+    target point passed; trackside.py)."""
+
+    train: int
+    #: when [s since the run's start]
+    t_s: float
+    #: the signal's km post [km]
+    signal_km: float
+    #: the block beyond it and the trains that held it
+    block: str
+    held_by: list[int]
+
+
+@dataclass(frozen=True)
+class Overspeed:
+    """A spell in which a moving train was faster than the static limit along it
+    (trackside.py ``static_overspeeds``): its first and last look and its worst look
+    [s since the run's start], where the head was then [km], the speed, the limit and the
+    excess [km/h]."""
+
+    train: int
+    from_s: float
+    to_s: float
+    t_s: float
+    head_km: float
+    speed_kmh: float
+    limit_kmh: float
+    excess_kmh: float
+
+
+@dataclass(frozen=True)
+class LiveRunInfo:
+    """What a live run (cosim/live.py) adds to its result: its time scale [simulated s
+    per wall-clock s] and what the dashboard's screenshot gave (None: none asked for)."""
+
+    speedup: float
+    screenshot: dict[str, Any] | None
 
 
 @dataclass
@@ -133,10 +172,10 @@ class LineResult:
     advised: bool
     drivers: Mapping[int, TrainRun]
     trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
-    tsr_violations: list[dict[str, Any]]
-    signals_passed_at_red: list[dict[str, Any]]
+    tsr_violations: list[TsrViolation]
+    signals_passed_at_red: list[SignalPassedAtRed]
     #: spells above the static limits (trackside.py ``static_overspeeds``)
-    overspeeds: list[dict[str, Any]]
+    overspeeds: list[Overspeed]
     link: dict[str, Any]
     tsr_applied: dict[int, dict[int, int]]  # train -> session -> times applied
     wall_s: float
@@ -151,8 +190,8 @@ class LineResult:
     #: where the run stopped [s since its start] (None: the scenario's end)
     end_s: float | None = None
     #: a live run's (cosim/live.py): its time scale and the dashboard's screenshot
-    live: dict[str, Any] | None = None
-    #: the ground's re-timings (ground/retimer.py ``OnlineRetimer.log``)
+    live: LiveRunInfo | None = None
+    #: the ground's re-timings (ground/online_retimer.py ``OnlineRetimer.log``)
     retiming: list[dict[str, Any]] = field(default_factory=list)
 
     @property
@@ -186,157 +225,9 @@ class LineResult:
         return played
 
     def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
-        """The KPI object of ``railpilot line simulate --json`` (module docstring)."""
-        trains: dict[str, Any] = {}
-        all_sections: list[float] = []
-        end_to_end: list[float] = []
-        total_energy = against_air = 0.0
-        all_delays: list[float | None] = []
-        worst_excess: dict[int, float] = {}
-        for spell in self.overspeeds:
-            train = spell["train"]
-            worst_excess[train] = max(worst_excess.get(train, 0.0), spell["excess_kmh"])
-        for train_id, driver in sorted(self.drivers.items()):
-            sections = driver.sections
-            per_section = [
-                _conformity(s.running_time_s, s.planned_running_time_s) for s in sections
-            ]
-            all_sections += per_section
-            energy = sum(s.energy_traction_kwh - s.energy_regenerated_kwh for s in sections)
-            total_energy += energy
-            wasted = sum(s.energy_traction_against_air_kwh for s in sections)
-            against_air += wasted
-            delays = driver.arrival_delays_s(self.sim_s)
-            all_delays += delays
-            row: dict[str, Any] = {
-                "number": driver.service.number,
-                "kind": driver.service.kind,
-                "sections_run": len(sections),
-                "sections_planned": len(driver.service.stops) - 1,
-                "finished": driver.finished,
-                "conformity_pct": {
-                    "sections": [round(c, 3) for c in per_section],
-                    "end_to_end": None,
-                },
-                "energy_kwh": round(energy, 1),
-                "energy_traction_kwh": round(sum(s.energy_traction_kwh for s in sections), 1),
-                "energy_regenerated_kwh": round(sum(s.energy_regenerated_kwh for s in sections), 1),
-                "energy_traction_against_air_kwh": round(wasted, 1),
-                "red_signal_stops": driver.red_signal_stops,
-                "max_overspeed_kmh": worst_excess.get(train_id, 0.0),
-                "running_times_received": driver.running_times_received,
-                "arrival_delay_s": None,
-                "arrival_delays_s": [None if d is None else round(d, 1) for d in delays],
-            }
-            if sections:
-                planned = sections[-1].planned_arrival_s - sections[0].planned_departure_s
-                actual = sections[-1].arrival_s - sections[0].departure_s
-                e2e = _conformity(actual, planned)
-                end_to_end.append(e2e)
-                row["conformity_pct"]["end_to_end"] = round(e2e, 3)
-                row["arrival_delay_s"] = round(
-                    sections[-1].arrival_s - sections[-1].planned_arrival_s, 1
-                )
-            trains[str(train_id)] = row
-        out: dict[str, Any] = {
-            "scenario": self.scenario.name,
-            "seed": self.seed,
-            "driver": "advised" if self.advised else "baseline",
-            "train_model": self.scenario.train_model,
-            "sim_s": self.sim_s,
-            "trains": trains,
-            "conformity_pct": {
-                "mean_end_to_end": _mean(end_to_end),
-                "mean_abs_section": _mean([abs(c) for c in all_sections]),
-                "max_section": round(max(all_sections), 3) if all_sections else None,
-            },
-            "energy_kwh": round(total_energy, 1),
-            "energy_traction_against_air_kwh": round(against_air, 1),
-            "punctuality": punctuality(all_delays),
-            "red_signal_stops": sum(d.red_signal_stops for d in self.drivers.values()),
-            "tsr_violations": len(self.tsr_violations),
-            "target_points_passed": len(self.signals_passed_at_red),
-            "overspeeds": len(self.overspeeds),
-            "max_overspeed_kmh": max(worst_excess.values(), default=0.0),
-            "tsr_applied_twice": sum(
-                1 for sessions in self.tsr_applied.values() for n in sessions.values() if n > 1
-            ),
-            "link": self.link,
-            "retiming": _retiming_summary(self.retimings()),
-            "ground_restarts": self.restarts,
-            "wall_s": round(self.wall_s, 3),
-            **({"live": self.live} if self.live is not None else {}),
-            "realtime_factor": round(self.sim_s / self.wall_s, 1) if self.wall_s > 0 else None,
-        }
-        if baseline is not None:
-            base = baseline.kpis()
-            out["baseline_energy_kwh"] = base["energy_kwh"]
-            out["baseline"] = {
-                k: base[k]
-                for k in (
-                    "conformity_pct",
-                    "energy_kwh",
-                    "energy_traction_against_air_kwh",
-                    "punctuality",
-                    "red_signal_stops",
-                    "tsr_violations",
-                    "target_points_passed",
-                    "overspeeds",
-                    "max_overspeed_kmh",
-                )
-            }
-        return out
-
-
-def _retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
-    """The ground's re-timings (``LineResult.retimings``): how many, how solved, who was
-    sent new times, and what the solver expected (lateness at the destinations [s], fixed
-    plan against re-timed)."""
-    solved = [e for e in log if "lateness_s" in e]
-    return {
-        "runs": len(solved),
-        "fallbacks": sum(1 for e in solved if e["status"] == STATUS_FALLBACK),
-        "trains_sent_times": sorted({i for e in solved for i in e.get("sent_to", ())}),
-        "messages_sent": sum(len(e.get("sent_to", ())) for e in solved),
-        "log": [
-            {
-                "t_s": round(e["t_s"], 1),
-                "trigger": e["trigger"],
-                "status": e["status"],
-                "trains": e["trains"],
-                "sent_to": e.get("sent_to", []),
-                "lateness_fixed_s": round(e["lateness_fixed_s"], 1),
-                "lateness_s": round(e["lateness_s"], 1),
-                "solve_ms": round(e["solve_ms"], 1),
-            }
-            for e in solved
-        ],
-    }
-
-
-def punctuality(delays_s: list[float | None]) -> dict[str, Any]:
-    """The operator's view of the arrivals (:meth:`TrainRun.arrival_delays_s`, None: due
-    and not made): how many were due or made, how many not made, the share [%] on time
-    within each of :data:`ON_TIME_WITHIN_MIN` minutes (one not made is not on time), and
-    the mean and the largest delay [s] of those made (None where there are none)."""
-    made = [d for d in delays_s if d is not None]
-    out: dict[str, Any] = {"arrivals": len(delays_s), "not_made": len(delays_s) - len(made)}
-    for minutes in ON_TIME_WITHIN_MIN:
-        on_time = sum(1 for d in made if d <= 60.0 * minutes)
-        out[f"within_{minutes}_min_pct"] = (
-            round(100.0 * on_time / len(delays_s), 1) if delays_s else None
-        )
-    out["mean_delay_s"] = round(float(np.mean(made)), 1) if made else None
-    out["max_delay_s"] = round(max(made), 1) if made else None
-    return out
-
-
-def _conformity(actual_s: float, planned_s: float) -> float:
-    return (actual_s - planned_s) / planned_s * 100.0
-
-
-def _mean(values: list[float]) -> float | None:
-    return round(float(np.mean(values)), 3) if values else None
+        """The KPI object of ``railpilot line simulate --json`` (cosim/kpis.py), the
+        baseline's figures beside it if given."""
+        return kpi_object(self, baseline)
 
 
 def line_train(
@@ -398,12 +289,13 @@ def run_line(
     # the ground keeps its TSRs, deliveries and audit log in a store, as the live ground
     # does (in memory: it outlives the simulated ground process, not this one)
     store = Store(":memory:", synchronous="NORMAL")
-    # the baseline has no re-timing: the fixed plan (issue 12 item 4)
+    # the baseline has no re-timing: the fixed plan
     retimings: list[dict[str, Any]] = []
     retimer = retimer_factory(scenario, retimings) if advised else None
-    sim = LinkSim(
-        line, trains, scenario.channel, keys, seed=seed, start_s=epoch, store=store, retimer=retimer
+    ground = GroundParts(
+        GroundConfig(ground_id=1, timers=trains[0].config.timers), line, keys, store, retimer
     )
+    sim = LinkSim.over(ground, trains, scenario.channel, seed=seed, start_s=epoch)
     watch = _Watch(sim, drivers, on_watch)
     events: list[dict[str, Any]] = []
     for event in scenario.events:
@@ -422,9 +314,12 @@ def run_line(
         advised,
         {i: TrainRun.of(driver) for i, driver in drivers.items()},
         traces,
-        watch.trackside.tsr_violations,
-        watch.trackside.passed_at_red,
-        static_overspeeds(scenario.line, traces, watch.trackside.trains),
+        [TsrViolation(**seen) for seen in watch.trackside.tsr_violations],
+        [SignalPassedAtRed(**seen) for seen in watch.trackside.passed_at_red],
+        [
+            Overspeed(**spell)
+            for spell in static_overspeeds(scenario.line, traces, watch.trackside.trains)
+        ],
         sim.link_report(),
         {i: dict(s.tsr_applied) for i, s in sim.stats.items()},
         wall,

@@ -3,10 +3,11 @@
 :class:`LinkSim` runs the live system's protocol and application code with another
 transport. Each train has an :class:`~railpilot.link.OnboardEndpoint`, kept across
 reconnects as ``net/client.py`` keeps it. The ground has one
-:class:`~railpilot.link.GroundEndpoint` per connection, all sharing one ``records``
-mapping as ``net/server.py`` does, and the dispatch core
-(:class:`~railpilot.ground.dispatch.GroundDispatch`) as ``net/dispatch_host.py`` runs it.
-Frames cross a :class:`~railpilot.cosim.channel.RadioChannel` per train.
+:class:`~railpilot.link.GroundEndpoint` per connection, and the same
+:class:`~railpilot.ground.host.GroundHost` as the live server (the train records they
+share, delivery or queueing, take-over, the dispatch core): this module is its transport
+in simulated time. Frames cross a :class:`~railpilot.cosim.channel.RadioChannel` per
+train.
 
 It is a discrete-event simulation. The queue holds packet arrivals, each endpoint's next
 deadline (``next_deadline_s``), the dispatch core's tick every ``tick_s`` and the trains'
@@ -35,29 +36,21 @@ onboard event (``on_event``), so a driving model can obey what the link brings.
 
 from __future__ import annotations
 
-import heapq
 import itertools
 import random
 from collections import Counter
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from railpilot.deadlines import DeadlineHeap, run_until
 from railpilot.errors import ConfigError, is_finite_number
-from railpilot.ground.dispatch import (
-    CancelTsrOn,
-    Command,
-    DeliverTsr,
-    GroundDispatch,
-    KeptCommand,
-    Outcome,
-    SendRunningTimes,
-    SendTargetPoint,
-    command_trains,
-)
-from railpilot.ground.journal import GroundJournal, command_request, declared_restrictions
+from railpilot.ground.assembly import GroundParts
+from railpilot.ground.dispatch import Command, GroundDispatch, Outcome
+from railpilot.ground.host import GroundHost
+from railpilot.ground.journal import GroundJournal, declared_restrictions
+from railpilot.ground.online_retimer import OnlineRetimer
 from railpilot.ground.operations import Operation
-from railpilot.ground.retimer import OnlineRetimer
 from railpilot.ground.store import GroundStore
 from railpilot.line.model import RailLine
 from railpilot.link import (
@@ -74,9 +67,7 @@ from railpilot.link import (
     PlannedCurve,
     Registered,
     RunningInfo,
-    TrainDeregistered,
     TrainRecord,
-    TrainRegistered,
     TsrApplied,
 )
 from railpilot.link.config import REPLAY_WINDOW_S
@@ -108,7 +99,7 @@ class SimTrain:
 class _Connection:
     serial: int
     train_id: int
-    ground: GroundEndpoint
+    endpoint: GroundEndpoint
     open: bool = True
 
 
@@ -143,7 +134,8 @@ class LinkSim:
     trains
         The trains; ids must be unique and have keys in ``keys``.
     channel
-        What the radio does to packets (its outages in seconds from ``start_s``).
+        What the radio does to packets (its outages in seconds from ``start_s``): one
+        model for every train, or each train's by its id.
     keys
         The per-train keys (HMAC-SHA256 on every frame, as on the live link).
     seed
@@ -157,15 +149,18 @@ class LinkSim:
         The ground's store (module docstring); None: the ground keeps everything in
         memory, and cannot be restarted.
     retimer
-        Makes the ground's re-timing in the loop (ground/retimer.py), for the first
+        Makes the ground's re-timing in the loop (ground/online_retimer.py), for the first
         ground and for each restarted one (None: no re-timing).
+
+    :meth:`over` builds one from a :class:`~railpilot.ground.assembly.GroundParts`
+    instead (the ground's line, configuration, keys, store and retimer in one place).
     """
 
     def __init__(
         self,
         line: RailLine,
         trains: Sequence[SimTrain],
-        channel: ChannelModel,
+        channel: ChannelModel | Mapping[int, ChannelModel],
         keys: KeyStore,
         *,
         seed: int = 0,
@@ -177,23 +172,66 @@ class LinkSim:
     ) -> None:
         if not trains:
             raise ConfigError("trains", [], "at least one train")
+        parts = GroundParts(
+            GroundConfig(ground_id=ground_id, timers=trains[0].config.timers),
+            line,
+            keys,
+            store,
+            retimer,
+        )
+        self._start(parts, trains, channel, seed=seed, start_s=start_s, tick_s=tick_s)
+
+    @classmethod
+    def over(
+        cls,
+        parts: GroundParts,
+        trains: Sequence[SimTrain],
+        channel: ChannelModel | Mapping[int, ChannelModel],
+        *,
+        seed: int = 0,
+        start_s: float = 1_800_000_000.0,
+        tick_s: float = TICK_S,
+    ) -> LinkSim:
+        """The trains and the ground made of ``parts`` (which must have a line and the
+        trains' keys), over ``channel`` (the other parameters as the class's)."""
+        if parts.line is None:
+            raise ConfigError("parts.line", None, "the line the simulated ground dispatches")
+        if parts.keys is None:
+            raise ConfigError("parts.keys", None, "the trains' keys (every frame is signed)")
+        sim = cls.__new__(cls)
+        sim._start(parts, trains, channel, seed=seed, start_s=start_s, tick_s=tick_s)
+        return sim
+
+    def _start(
+        self,
+        parts: GroundParts,
+        trains: Sequence[SimTrain],
+        channel: ChannelModel | Mapping[int, ChannelModel],
+        *,
+        seed: int,
+        start_s: float,
+        tick_s: float,
+    ) -> None:
+        """Set up the run over the ground made of ``parts`` (both constructors)."""
+        assert parts.line is not None and parts.keys is not None  # over() checks them
+        if not trains:
+            raise ConfigError("trains", [], "at least one train")
         ids = [t.config.train_id for t in trains]
         duplicates = sorted({i for i in ids if ids.count(i) > 1})
         if duplicates:
             raise ConfigError("trains", duplicates, "unique train ids")
         if not is_finite_number(start_s) or start_s <= 0:
             raise ConfigError("start_s", start_s, "a time > 0 [s since the epoch]")
-        timers = trains[0].config.timers
-        self.line = line
+        keys = parts.keys
+        self.line = parts.line
         self.start_s = float(start_s)
         self.now_s = self.start_s
         self.keys = keys
         self.tick_s = tick_s
-        self.ground_config = GroundConfig(ground_id=ground_id, timers=timers)
-        self.records: dict[int, TrainRecord] = {}
-        self._retimer = retimer
-        self.dispatch = self._new_dispatch()
-        self.journal = GroundJournal(store) if store is not None else None
+        #: what the ground is made of (each ground process is built from it)
+        self.parts = parts
+        #: the ground's application rules; this simulation is their transport
+        self.host: GroundHost[_Connection] = self.parts.new_host(self)
         #: whether the ground is running (:meth:`restart_ground`)
         self.ground_up = True
         #: each restart: when the ground went down and came up [s since the start of the
@@ -201,18 +239,21 @@ class LinkSim:
         self.restarts: list[dict[str, Any]] = []
         self.trains = {t.config.train_id: t for t in trains}
         self.onboard = {i: OnboardEndpoint(t.config, keys) for i, t in self.trains.items()}
-        self.channels = {i: RadioChannel(channel, seed, i, self.start_s) for i in self.trains}
+        models = channel if isinstance(channel, Mapping) else dict.fromkeys(self.trains, channel)
+        missing = sorted(set(self.trains) - set(models))
+        if missing:
+            raise ConfigError("channel", missing, "a channel model for every train")
+        self.channels = {i: RadioChannel(models[i], seed, i, self.start_s) for i in self.trains}
         self._jitter = {i: random.Random(f"railpilot-reconnect:{seed}:{i}") for i in self.trains}
         self.stats = {i: TrainLinkStats() for i in self.trains}
         #: train id -> (position, speed) of its onboard's running info (:meth:`_refresh`)
         self._seen: dict[int, tuple[float, float]] = {}
-        self.live: dict[int, _Connection] = {}  # train id -> its open connection
         self._connections: dict[int, _Connection] = {}  # serial -> connection, open or not
         #: train id -> the serial of the onboard's open connection
         self._onboard_serial: dict[int, int] = {}
         self._serials = itertools.count(1)
-        self._queue: list[tuple[float, int, str, Any]] = []
-        self._order = itertools.count()  # ties keep the order they were queued in
+        #: the events to come, (kind, item) by time; driven in virtual time (run_until)
+        self._queue: DeadlineHeap[tuple[str, Any]] = DeadlineHeap()
         self._deadline: dict[tuple[str, int], float] = {}
         self._handlers: dict[str, Callable[[Any], None]] = {}  # event kind -> its method
         #: trains leaving the line (:meth:`retire`), until their deregistration is through
@@ -228,17 +269,18 @@ class LinkSim:
     def run_until(self, t_s: float) -> None:
         """Process every event up to ``t_s`` seconds after the start of the run."""
         end = self.start_s + t_s
-        queue = self._queue
-        handlers = self._handlers
-        while queue and queue[0][0] <= end:
-            at, _, kind, item = heapq.heappop(queue)
-            self.now_s = at
-            handler = handlers.get(kind)
-            if handler is None:
-                # each kind's method looked up once (millions of events in a day)
-                handler = handlers[kind] = getattr(self, f"_on_{kind}")
-            handler(item)
+        run_until(self._queue, end, self._handle)
         self.now_s = max(self.now_s, end)
+
+    def _handle(self, at_s: float, event: tuple[str, Any]) -> None:
+        """One event of the queue, at its time."""
+        self.now_s = at_s
+        kind, item = event
+        handler = self._handlers.get(kind)
+        if handler is None:
+            # each kind's method looked up once (millions of events in a day)
+            handler = self._handlers[kind] = getattr(self, f"_on_{kind}")
+        handler(item)
 
     def call_at(self, t_s: float, action: Callable[[], None]) -> None:
         """Run ``action`` at ``t_s`` seconds after the start of the run, in its turn among
@@ -282,27 +324,58 @@ class LinkSim:
         for conn in list(self._connections.values()):
             self._close(conn)
         self.restarts.append({"down_at_s": self.now_s - self.start_s})
-        # everything the process held in memory
-        self.records = {}
-        self.live.clear()
-        self.dispatch = self._new_dispatch()
+        # everything the process held in memory (the store, and its writer, outlive it)
+        self.host = self.parts.new_host(self, config=self.host.config, journal=self.journal)
         self._push(self.now_s + down_s, "ground_start", None)
 
     def operate(self, operation: Operation, actor: str) -> Outcome:
         """A dispatcher's operation, now, as ``DispatchHost`` carries it out: the core
         decides, what it changed on the line goes to the store, then its deliveries leave.
         Raises :class:`~railpilot.ground.operations.OperationError` (nothing done)."""
-        outcome = self.dispatch.execute(operation, actor, self.now_s)
-        if self.journal is not None:
-            self.journal.record_operation(operation, outcome.result, actor, self.now_s)
+        outcome = self.host.operate(operation, actor, self.now_s)
         self.execute(outcome.commands)
         return outcome
 
-    def execute(self, commands: Iterable[Command]) -> None:
-        """Carry out the dispatch core's commands now (as ``DispatchHost`` does)."""
-        for command in commands:
-            for train_id in command_trains(command):
-                self._deliver(train_id, command)
+    def execute(self, commands: Iterable[Command]) -> dict[int, str]:
+        """Carry out the dispatch core's commands now; the outcome per train (a request
+        a train's record refuses is reported there, not raised)."""
+        return self.host.carry_out(commands, self.now_s)
+
+    # ------------------------------------------------------------------ the ground host
+
+    @property
+    def records(self) -> dict[int, TrainRecord]:
+        """The ground's train records (train id -> record)."""
+        return self.host.records
+
+    @property
+    def live(self) -> dict[int, _Connection]:
+        """Registered train id -> its open connection."""
+        return self.host.live
+
+    @property
+    def dispatch(self) -> GroundDispatch:
+        """The ground's dispatch core."""
+        assert self.host.dispatch is not None  # _new_host gives it one
+        return self.host.dispatch
+
+    @property
+    def journal(self) -> GroundJournal | None:
+        """The ground's writer to its store (None: no store)."""
+        return self.host.journal
+
+    @property
+    def ground_config(self) -> GroundConfig:
+        """The ground endpoints' configuration."""
+        return self.host.config
+
+    def flush(self, conn: _Connection, now_s: float) -> None:
+        """The host's transport: what ``conn``'s endpoint queued leaves now."""
+        self._after_ground(conn)
+
+    def close(self, conn: _Connection, reason: str) -> None:
+        """The host's transport: close ``conn`` at both ends (module docstring)."""
+        self._close(conn)
 
     # ------------------------------------------------------------------ what a train is doing
 
@@ -315,7 +388,7 @@ class LinkSim:
     def link_report(self) -> dict[str, Any]:
         """The link statistics of the run: frames, losses, resends, timeouts, rejections
         by check (ground and onboard), and the channel's counts."""
-        ground = counters_dict(c.ground.counters for c in self._connections.values())
+        ground = counters_dict(c.endpoint.counters for c in self._connections.values())
         onboard = counters_dict([e.counters for e in self.onboard.values()])
         return {
             "ground": ground,
@@ -328,7 +401,7 @@ class LinkSim:
     # ------------------------------------------------------------------ the queue
 
     def _push(self, at_s: float, kind: str, item: Any) -> None:
-        heapq.heappush(self._queue, (at_s, next(self._order), kind, item))
+        self._queue.push(at_s, (kind, item))
 
     def _schedule(self, side: str, ident: int, deadline: float | None) -> None:
         """Keep one live deadline per endpoint; older entries are skipped when popped."""
@@ -359,9 +432,9 @@ class LinkSim:
         assert self.journal is not None  # restart_ground needs it
         store = self.journal.store
         not_before_s = self.now_s - REPLAY_WINDOW_S  # frames older than this are replays
-        self.ground_config = replace(self.ground_config, not_before_s=not_before_s)
+        self.host.config = replace(self.host.config, not_before_s=not_before_s)
         snapshot = store.load()
-        self.records, summary = self.journal.restore(snapshot, not_before_s, self.now_s)
+        summary = self.host.restore(snapshot, self.now_s)
         self.dispatch.restore(snapshot, self.now_s, declared_restrictions(store.audit_log()))
         self.ground_up = True
         self.restarts[-1] |= {"up_at_s": self.now_s - self.start_s, "restored": summary}
@@ -381,11 +454,11 @@ class LinkSim:
         conn = _Connection(
             next(self._serials),
             train_id,
-            GroundEndpoint(self.ground_config, self.keys, self.records),
+            GroundEndpoint(self.host.config, self.keys, self.host.records),
         )
         self._connections[conn.serial] = conn
         self._onboard_serial[train_id] = conn.serial
-        conn.ground.connection_made(self.now_s)
+        conn.endpoint.connection_made(self.now_s)
         self._after_ground(conn)
         self._refresh(train_id)
         onboard.connection_made(self.now_s)
@@ -408,14 +481,14 @@ class LinkSim:
         serial, deadline = item
         conn = self._connections[serial]
         if self._due("ground", serial, deadline) and conn.open:
-            conn.ground.tick(self.now_s)
+            conn.endpoint.tick(self.now_s)
             self._after_ground(conn)
 
     def _on_to_ground(self, item: tuple[int, bytes]) -> None:
         serial, data = item
         conn = self._connections[serial]
         if conn.open:
-            conn.ground.receive_data(data, self.now_s)
+            conn.endpoint.receive_data(data, self.now_s)
             self._after_ground(conn)
 
     def _on_to_train(self, item: tuple[int, bytes]) -> None:
@@ -428,18 +501,9 @@ class LinkSim:
 
     def _on_dispatch_tick(self, _: None) -> None:
         if self.ground_up:
-            open_now = {t for t, c in self.live.items() if c.open}
-            for train_id in self.dispatch.registry.train_ids():
-                self.dispatch.connection(train_id, train_id in open_now)
+            self.host.sync(t for t, c in self.live.items() if c.open)
             self.execute(self.dispatch.tick(self.now_s))
         self._push(self.now_s + self.tick_s, "dispatch_tick", None)
-
-    def _new_dispatch(self) -> GroundDispatch:
-        timers = self.ground_config.timers
-        dispatch = GroundDispatch(self.line, validity_s=timers.cycle_s * timers.timeout_cycles)
-        if self._retimer is not None:
-            dispatch.retimer = self._retimer()
-        return dispatch
 
     # ------------------------------------------------------------------ the two ends
 
@@ -488,7 +552,7 @@ class LinkSim:
         self._schedule("onboard", train_id, onboard.next_deadline_s())
 
     def _after_ground(self, conn: _Connection) -> None:
-        ground = conn.ground
+        ground = conn.endpoint
         data = ground.data_to_send()
         events = list(ground.events())
         if self.journal is not None:
@@ -500,16 +564,8 @@ class LinkSim:
         failed = False
         commands: list[Command] = []
         for event in events:
-            train_id = ground.train_id
-            if isinstance(event, TrainRegistered):
-                old = self.live.get(event.train_id)
-                if old is not None and old is not conn:
-                    self._close(old)
-                self.live[event.train_id] = conn
-            elif isinstance(event, TrainDeregistered) and self.live.get(event.train_id) is conn:
-                del self.live[event.train_id]
             failed |= isinstance(event, LinkFailed)
-            commands += self.dispatch.on_event(train_id, event, self.now_s)
+            commands += self.host.on_event(conn, event, self.now_s)
         if failed:
             self._close(conn)
         else:
@@ -529,10 +585,9 @@ class LinkSim:
         if not conn.open:
             return
         conn.open = False
-        conn.ground.connection_lost(self.now_s)
+        conn.endpoint.connection_lost(self.now_s)
         self._deadline.pop(("ground", conn.serial), None)
-        if self.live.get(conn.train_id) is conn:
-            del self.live[conn.train_id]
+        self.host.closed(conn, conn.train_id)
         if self._onboard_serial.get(conn.train_id) != conn.serial:
             return  # an older connection the onboard had already left
         del self._onboard_serial[conn.train_id]
@@ -553,59 +608,6 @@ class LinkSim:
             stats.tsr_applied[event.tsr.session] += 1
         elif isinstance(event, Registered):
             stats.registrations += 1
-
-    def _deliver(self, train_id: int, command: Command) -> None:
-        """On the train's live connection, else into its record for the next
-        registration (as ``GroundServer._deliver``); running times only on a live
-        registered connection, and not kept (ground/dispatch.py ``SendRunningTimes``)."""
-        if isinstance(command, SendRunningTimes):
-            live = self.live.get(train_id)
-            if live is not None and live.open and live.ground.holds_registration:
-                live.ground.send(command.times, self.now_s)
-                self._after_ground(live)
-            return
-        self._deliver_kept(train_id, command)
-
-    def _deliver_kept(self, train_id: int, command: KeptCommand) -> None:
-        def apply(dest: GroundEndpoint | TrainRecord, now_s: float) -> None:
-            _apply(dest, command, now_s)
-
-        record = self.records.get(train_id)
-        if self.journal is not None:
-            self.journal.commit_request(
-                record, train_id, command_request(command), apply, self.now_s
-            )
-        conn = self.live.get(train_id)
-        if conn is not None and conn.open and conn.ground.train_id == train_id:
-            apply(conn.ground, self.now_s)
-            self._after_ground(conn)
-            return
-        if record is None:
-            record = self.records[train_id] = TrainRecord(train_id)
-            record.history.not_before_us = round(self.ground_config.not_before_s * 1e6)
-        apply(record, self.now_s)
-
-
-def _apply(dest: GroundEndpoint | TrainRecord, command: KeptCommand, now_s: float) -> None:
-    """Carry out ``command`` on a train's live endpoint (sent now) or on its record (sent
-    on its next registration), as ``GroundServer``'s delivery methods do."""
-    if isinstance(dest, GroundEndpoint):
-        if isinstance(command, DeliverTsr):
-            dest.set_tsr(command.tsr.message, now_s)
-        elif isinstance(command, CancelTsrOn):
-            dest.cancel_tsr(command.session, now_s)
-        elif isinstance(command, SendTargetPoint):
-            dest.send_target_point(command.target, now_s)
-        else:
-            dest.send_dispatch_command(command.command, now_s)
-    elif isinstance(command, DeliverTsr):
-        dest.add_tsr(command.tsr.message)
-    elif isinstance(command, CancelTsrOn):
-        dest.cancel_tsr(command.session)
-    elif isinstance(command, SendTargetPoint):
-        dest.add_target_point(command.target)
-    else:
-        dest.add_dispatch_command(command.command)
 
 
 __all__ = ["LinkSim", "Mover", "SimTrain", "TrainLinkStats", "Trajectory"]

@@ -1,6 +1,6 @@
 """A line run live: the ground as a server and every train as its own process, over real
-TCP on loopback, on a clock ``speedup`` times faster than the wall's (issue 12 item 2;
-docs/line-run.md "Live").
+TCP on loopback, on a clock ``speedup`` times faster than the wall's (docs/line-run.md
+"Live").
 
 :func:`run_live` plays a line-run scenario as the co-simulation (cosim/line_run.py) does,
 with real parts where the co-simulation has simulated ones:
@@ -53,7 +53,16 @@ from railpilot.net.timers import LinkClock
 from . import live_ground, live_train
 from .channel import ChannelCounters, channel_totals
 from .driver import SectionRun, Service
-from .line_run import RETRY_WHILE_DOWN_S, WATCH_S, LineResult, TrainRun
+from .line_run import (
+    RETRY_WHILE_DOWN_S,
+    WATCH_S,
+    LineResult,
+    LiveRunInfo,
+    Overspeed,
+    SignalPassedAtRed,
+    TrainRun,
+    TsrViolation,
+)
 from .live_wire import MAX_LINE, hello_name, receive, send
 from .scenario import (
     MAX_SEED,
@@ -61,7 +70,7 @@ from .scenario import (
     LineScenario,
     ScenarioEvent,
     TrainFailure,
-    load_scenario,
+    load_line_scenario,
 )
 from .trackside import CabView, Trackside, TrainSeen, TrainShape, static_overspeeds
 
@@ -157,7 +166,7 @@ def run_live(path: str | Path, options: LiveOptions | None = None) -> LineResult
     """Run the line-run file ``path`` live (module docstring) and return what the
     co-simulation returns for it (its ``kpis()``)."""
     options = options or LiveOptions()
-    scenario = load_scenario(path)
+    scenario = load_line_scenario(path)
     options.check(scenario)
     with tempfile.TemporaryDirectory(prefix="railpilot-live-") as scratch:
         store = options.store_path or str(Path(scratch) / "ground.db")
@@ -512,9 +521,12 @@ class _LiveRun:
             True,
             drivers,
             traces,
-            self.trackside.tsr_violations,
-            self.trackside.passed_at_red,
-            static_overspeeds(self.scenario.line, traces, self.trackside.trains),
+            [TsrViolation(**seen) for seen in self.trackside.tsr_violations],
+            [SignalPassedAtRed(**seen) for seen in self.trackside.passed_at_red],
+            [
+                Overspeed(**spell)
+                for spell in static_overspeeds(self.scenario.line, traces, self.trackside.trains)
+            ],
             link,
             {i: {int(k): v for k, v in r["tsr_applied"].items()} for i, r in self.results.items()},
             wall_s,
@@ -524,7 +536,7 @@ class _LiveRun:
             snapshot,
             {i: list(r["active_tsrs"]) for i, r in self.results.items()},
             self.end_s,
-            live={"speedup": self.options.speedup, "screenshot": self.screenshot},
+            live=LiveRunInfo(self.options.speedup, self.screenshot),
             retiming=self.retiming,
         )
         return result

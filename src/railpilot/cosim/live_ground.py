@@ -1,8 +1,8 @@
 """The ground process of a live line run (cosim/live.py; docs/line-run.md "Live").
 
-The ground as ``railpilot ground serve`` runs it, on the run's clock: the link's front
-server (:class:`~railpilot.net.server.GroundServer`) with its store (an SQLite file), the
-dispatch application (:class:`~railpilot.net.dispatch_host.DispatchHost`), the admin port
+The ground as ``railpilot ground serve`` runs it, built from the same parts
+(net/ground_app.py), on the run's clock: the link's front server with its store (an
+SQLite file) and the dispatch application with the run's retimer, the admin port
 the run's dispatcher speaks to, and the dashboard. It is started (and, for a ground
 restart, killed with SIGKILL and started again on the same ports and store) by the run.
 """
@@ -13,19 +13,19 @@ import asyncio
 import logging
 from dataclasses import dataclass
 
+from railpilot.ground.assembly import GroundParts
 from railpilot.ground.store import open_store
 from railpilot.link import GroundConfig
 from railpilot.net.admin import AdminServer
-from railpilot.net.dispatch_host import DispatchHost
-from railpilot.net.server import GroundServer
+from railpilot.net.ground_app import live_ground
 from railpilot.net.timers import LinkClock
 from railpilot.onboard.drive import train_preset
 from railpilot.web.ground_source import ServerSource, serve_dashboard
 
 from .line_run import line_keys
 from .live_wire import connect, receive, send
-from .retiming import retimer_factory
-from .scenario import load_scenario
+from .retimer_factory import retimer_factory
+from .scenario import load_line_scenario
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,7 @@ def run(args: GroundArgs) -> None:
 
 
 async def _main(args: GroundArgs) -> None:
-    scenario = load_scenario(args.scenario_path)
+    scenario = load_line_scenario(args.scenario_path)
     keys = line_keys(scenario, args.seed)
     reader, writer = await connect(args.control_port)
     await send(writer, {"op": "hello", "role": "ground", "secret": args.secret})
@@ -67,18 +67,16 @@ async def _main(args: GroundArgs) -> None:
         wait = clock.wall_s(scenario.epoch_s + args.start_at_s - clock())
         await asyncio.sleep(max(wait, 0.0))
     store = open_store(args.store_path)
-    server = GroundServer(
-        GroundConfig(ground_id=1, require_auth=True),
-        keys,
-        port=args.link_port,
-        store=store,
-        clock=clock,
-    )
-    dispatch = DispatchHost(server, scenario.line)
     retimings: list[dict[str, object]] = []
-    make_retimer = retimer_factory(scenario, retimings)
-    if make_retimer is not None:
-        dispatch.dispatch.retimer = make_retimer()
+    parts = GroundParts(
+        GroundConfig(ground_id=1, require_auth=True),
+        scenario.line,
+        keys,
+        store,
+        retimer_factory(scenario, retimings),
+    )
+    dispatch = live_ground(parts, port=args.link_port, clock=clock)
+    server = dispatch.server
     # the registration does not carry a train's category; the run's scenario does
     categories = {s.train_id: train_preset(s.kind).category for s in scenario.services}
     http, http_task = await serve_dashboard(

@@ -36,7 +36,7 @@ from railpilot.net.timers import LinkClock
 from .channel import RadioChannel
 from .line_run import WATCH_S, line_keys, line_train
 from .live_wire import connect, receive, send
-from .scenario import load_scenario
+from .scenario import load_line_scenario
 
 #: how much of its first section a train process drives before it says it is ready [s]:
 #: enough to compile the simulation core and fill the route caches
@@ -86,7 +86,7 @@ def run(args: TrainArgs) -> None:
 
 
 async def _main(args: TrainArgs) -> None:
-    scenario = load_scenario(args.scenario_path)
+    scenario = load_line_scenario(args.scenario_path)
     service = next(s for s in scenario.services if s.train_id == args.train_id)
     warm, _ = line_train(scenario, service, True)
     warm.at(service.stops[0].departure_s + WARM_UP_S)

@@ -1,5 +1,5 @@
 """A line-run scenario: the line, the trains' timetable, the radio, what happens when
-(issue 12 item 3; the format is in docs/line-run.md).
+(the format is in docs/line-run.md; its JSON Schema: ``railpilot schema line-run``).
 
 TOML::
 
@@ -12,7 +12,7 @@ TOML::
     loss = 0.3
     dead_zones = [{ start_km = 150.0, end_km = 156.0 }]
 
-    [retiming]                      # the ground re-times trains off plan (ground/retimer.py)
+    [retiming]                      # the ground re-times trains off plan (ground/online_retimer.py)
     enabled = true                  # the default; false: the fixed plan
     headway_min = 8.0               # fixed-block headway between trains on a section
     energy_weight_s_per_kwh = 0.25  # one kWh is worth this many seconds of lateness
@@ -61,60 +61,46 @@ import math
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass, field
-from pathlib import Path
 from typing import Any
 
-from railpilot.errors import ConfigError, ScenarioError, is_finite_number
+from railpilot.errors import ConfigError, ScenarioError
+from railpilot.ground.online_retimer import RetimerSettings
 from railpilot.ground.operations import OPS, Operation, OperationError, parse_operation
-from railpilot.ground.retimer import RetimerSettings
 from railpilot.line.loader import load_line
 from railpilot.line.model import RailLine
-from railpilot.textfile import read_toml
+from railpilot.schema.line_run import (
+    GROUND_RESTART,
+    MAX_SEED,
+    MAX_TRAIN_ID,
+    TRAIN_FAILURE,
+    TRAIN_ID,
+    TRAIN_MODELS,
+    EventTable,
+    GroundRestartTable,
+    LineRunFileTable,
+    RetimingTable,
+    ServiceTable,
+    TrainFailureTable,
+)
+from railpilot.schema.reading import read_document
+from railpilot.schema.validate import check
 
 from .channel import ChannelModel
 from .driver import Service, Stop, planned_running_time_s
 
+__all__ = [
+    "MAX_SEED",
+    "TRAIN_MODELS",
+    "GroundRestart",
+    "LineScenario",
+    "ScenarioEvent",
+    "TrainFailure",
+    "line_scenario_from_mapping",
+    "load_line_scenario",
+]
+
 #: the train kinds a service may name, and their presets (onboard/drive.py)
 KINDS = {"loaded": "heavy-haul-loaded", "empty": "heavy-haul-empty"}
-TOP_KEYS = (
-    "name",
-    "line",
-    "seed",
-    "duration_h",
-    "start_epoch_s",
-    "margin_kmh",
-    "channel",
-    "retiming",
-    "services",
-    "events",
-    "trains",
-)
-#: the trains' model in a line run: the point mass (fast), or every vehicle of its consist
-TRAIN_MODELS = ("point-mass", "consist")
-RETIMING_KEYS = (
-    "enabled",
-    "headway_min",
-    "energy_weight_s_per_kwh",
-    "off_plan_min",
-    "every_min",
-)
-SERVICE_KEYS = (
-    "kind",
-    "from",
-    "to",
-    "first_departure_min",
-    "every_min",
-    "count",
-    "first_id",
-    "dwell_min",
-    "supplement",
-    "number_prefix",
-)
-#: the events that are not a dispatcher's operation
-TRAIN_FAILURE = "train_failure"
-GROUND_RESTART = "ground_restart"
-#: the largest seed (a run's randomness: the radio's and the reconnects')
-MAX_SEED = 2**63 - 1
 #: the link epoch the run starts at when the file gives none [s] (2027-01-15 08:00 UTC)
 DEFAULT_EPOCH_S = 1_800_000_000.0
 
@@ -167,74 +153,40 @@ class LineScenario:
         return LineScenario(**values)
 
 
-def _number(
-    table: Mapping[str, Any],
-    key: str,
-    where: str,
-    low: float,
-    high: float,
-    default: float | None = None,
-) -> float:
-    value = table.get(key, default)
-    if value is None:
-        raise ScenarioError(f"{where}{key}", None, f"a number in [{low:g}, {high:g}] (required)")
-    if not is_finite_number(value) or not low <= value <= high:
-        raise ScenarioError(f"{where}{key}", value, f"a number in [{low:g}, {high:g}]")
-    return float(value)
-
-
-def _integer(
-    table: Mapping[str, Any], key: str, where: str, low: int, high: int, default: int | None = None
-) -> int:
-    value = table.get(key, default)
-    if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-        raise ScenarioError(f"{where}{key}", value, f"an integer in [{low}, {high}]")
-    return value
-
-
-def _check_keys(table: Any, where: str, allowed: tuple[str, ...]) -> Mapping[str, Any]:
-    if not isinstance(table, Mapping):
-        raise ScenarioError(where or "scenario", table, "a table")
-    for key in table:
-        if key not in allowed:
-            raise ScenarioError(
-                f"{where}{key}", table[key], f"one of the keys {', '.join(allowed)}"
-            )
-    return table
-
-
-def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
-    if not isinstance(raw, list) or not raw:
-        raise ScenarioError("services", raw, "a list of at least one [[services]] table")
+def _services(
+    tables: list[ServiceTable], written: list[Mapping[str, Any]], line: RailLine, margin: float
+) -> tuple[Service, ...]:
+    """The trains of the services ``tables`` (``written``: the same as the file gives them,
+    for the errors' values)."""
     services: list[Service] = []
     station_ids = {s.id for s in line.stations}
-    for i, table in enumerate(raw):
+    for i, (table, raw) in enumerate(zip(tables, written, strict=True)):
         where = f"services[{i}]."
-        _check_keys(table, where, SERVICE_KEYS)
-        kind = table.get("kind")
-        if not isinstance(kind, str) or kind not in KINDS:
-            raise ScenarioError(f"{where}kind", kind, f"one of {', '.join(KINDS)}")
         ends = []
-        for key in ("from", "to"):
-            value = table.get(key)
-            # a number first: a file's list or table is no id, and is unhashable
-            if not is_finite_number(value) or value not in station_ids:
-                raise ScenarioError(f"{where}{key}", value, f"a station id of line '{line.name}'")
+        for key, value in (("from", table.from_), ("to", table.to)):
+            if value not in station_ids:
+                raise ScenarioError(
+                    f"{where}{key}", raw[key], f"a station id of line '{line.name}'"
+                )
             ends.append(int(value))
         if ends[0] == ends[1]:
             raise ScenarioError(f"{where}to", ends[1], "a station other than 'from'")
-        first = _number(table, "first_departure_min", where, 0.0, 7 * 24 * 60.0)
-        count = _integer(table, "count", where, 1, 1000, 1)
-        every = _number(table, "every_min", where, 1.0, 24 * 60.0, 60.0)
-        first_id = _integer(table, "first_id", where, 2, 65_000 - count)
-        dwell = _number(table, "dwell_min", where, 0.0, 600.0, 5.0)
-        supplement = _number(table, "supplement", where, 0.0, 1.0, 0.10)
-        prefix = table.get("number_prefix", "K" if kind == "loaded" else "E")
-        if not isinstance(prefix, str) or not 1 <= len(prefix) <= 2 or not prefix.isalnum():
+        first, count, every = table.first_departure_min, table.count, table.every_min
+        if table.first_id > MAX_TRAIN_ID - count:
+            raise ScenarioError(
+                f"{where}first_id", table.first_id, f"an integer in [2, {MAX_TRAIN_ID - count}]"
+            )
+        dwell, supplement = table.dwell_min, table.supplement
+        prefix = (
+            table.number_prefix
+            if table.given("number_prefix")
+            else ("K" if table.kind == "loaded" else "E")
+        )
+        if not prefix.isalnum():
             raise ScenarioError(f"{where}number_prefix", prefix, "1 or 2 letters or digits")
         step = 1 if ends[1] > ends[0] else -1
         stations = list(range(ends[0], ends[1] + step, step))
-        preset = KINDS[kind]
+        preset = KINDS[table.kind]
         for n in range(count):
             t = (first + n * every) * 60.0
             stops = []
@@ -247,7 +199,7 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
                     t = arrival + dwell * 60.0
                 departure = math.nan if j == len(stations) - 1 else t
                 stops.append(Stop(station, arrival, departure))
-            train_id = first_id + n
+            train_id = table.first_id + n
             services.append(Service(train_id, f"{prefix}{train_id}", preset, tuple(stops)))
     ids = [s.train_id for s in services]
     twice = sorted({i for i in ids if ids.count(i) > 1})
@@ -257,29 +209,31 @@ def _services(raw: Any, line: RailLine, margin: float) -> tuple[Service, ...]:
 
 
 def _events(
-    raw: Any, line: RailLine, epoch_s: float, duration_s: float, train_ids: set[int]
+    tables: list[EventTable],
+    line: RailLine,
+    epoch_s: float,
+    duration_s: float,
+    train_ids: set[int],
 ) -> tuple[ScenarioEvent, ...]:
-    if not isinstance(raw, list):
-        raise ScenarioError("events", raw, "a list of [[events]] tables")
     events = []
-    for i, table in enumerate(raw):
+    for i, table in enumerate(tables):
         where = f"events[{i}]."
-        if not isinstance(table, Mapping):
-            raise ScenarioError(f"events[{i}]", table, "a table")
-        at_s = _number(table, "at_min", where, 0.0, duration_s / 60.0) * 60.0
-        op = table.get("op")
-        fields = {k: v for k, v in table.items() if k not in ("at_min", "op")}
+        if not table.at_min <= duration_s / 60.0:
+            raise ScenarioError(
+                f"{where}at_min", table.at_min, f"a number in [0, {duration_s / 60.0:g}]"
+            )
+        at_s = table.at_min * 60.0
+        op = table.op
+        fields = dict(table.model_extra or {})
         action: Operation | TrainFailure | GroundRestart
         if op == GROUND_RESTART:
-            _check_keys(fields, where, ("down_min",))
-            action = GroundRestart(_number(fields, "down_min", where, 0.0, 24 * 60.0, 2.0) * 60.0)
+            restart = check(GroundRestartTable, fields, ScenarioError, at=("events", i))
+            action = GroundRestart(float(restart.down_min) * 60.0)
         elif op == TRAIN_FAILURE:
-            _check_keys(fields, where, ("train", "stand_min"))
-            train = fields.get("train")
-            if not is_finite_number(train) or train not in train_ids:
-                raise ScenarioError(f"{where}train", train, "the id of a train of the scenario")
-            stand = _number(fields, "stand_min", where, 0.0, 24 * 60.0, 10.0)
-            action = TrainFailure(int(train), stand * 60.0)
+            failure = check(TrainFailureTable, fields, ScenarioError, at=("events", i))
+            if failure.train not in train_ids:
+                raise ScenarioError(f"{where}train", fields["train"], TRAIN_ID)
+            action = TrainFailure(int(failure.train), float(failure.stand_min) * 60.0)
         elif op not in OPS:
             raise ScenarioError(
                 f"{where}op",
@@ -292,7 +246,7 @@ def _events(
                 action = parse_operation(op, fields, line=line, now_s=epoch_s + at_s)
             except OperationError as error:
                 name, why = next(iter(error.errors.items()))
-                refused = ScenarioError(f"{where}{name}", table.get(name), why)
+                refused = ScenarioError(f"{where}{name}", fields.get(name), why)
                 # the ground's own message says the value and what is allowed: not again
                 refused.args = (f"{where}{name}: {why}",)
                 raise refused from None
@@ -300,73 +254,54 @@ def _events(
     return tuple(sorted(events, key=lambda e: e.at_s))
 
 
-def _retiming(raw: Any) -> RetimerSettings | None:
-    if not isinstance(raw, Mapping):
-        raise ScenarioError("retiming", raw, "a [retiming] table")
-    table = _check_keys(raw, "retiming.", RETIMING_KEYS)
-    enabled = table.get("enabled", True)
-    if not isinstance(enabled, bool):
-        raise ScenarioError("retiming.enabled", enabled, "true or false")
+def _retiming(table: RetimingTable) -> RetimerSettings | None:
+    if not table.enabled:
+        return None
     default = RetimerSettings()
-    settings = RetimerSettings(
-        headway_s=_number(table, "headway_min", "retiming.", 0.0, 120.0, default.headway_s / 60)
-        * 60.0,
-        energy_weight_s_per_kwh=_number(
-            table,
-            "energy_weight_s_per_kwh",
-            "retiming.",
-            0.0,
-            1e4,
-            default.energy_weight_s_per_kwh,
-        ),
-        off_plan_s=_number(table, "off_plan_min", "retiming.", 0.1, 120.0, default.off_plan_s / 60)
-        * 60.0,
-        every_s=_number(table, "every_min", "retiming.", 0.1, 24 * 60.0, default.every_s / 60)
-        * 60.0,
+
+    def given(key: str, default_value: float) -> float:
+        return float(getattr(table, key)) if table.given(key) else default_value
+
+    return RetimerSettings(
+        headway_s=given("headway_min", default.headway_s / 60) * 60.0,
+        energy_weight_s_per_kwh=given("energy_weight_s_per_kwh", default.energy_weight_s_per_kwh),
+        off_plan_s=given("off_plan_min", default.off_plan_s / 60) * 60.0,
+        every_s=given("every_min", default.every_s / 60) * 60.0,
     )
-    return settings if enabled else None
 
 
-def scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
+def line_scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
     """A :class:`LineScenario` from a parsed file, every field checked (module docstring)."""
-    _check_keys(data, "", TOP_KEYS)
-    name = data.get("name", "line run")
-    if not isinstance(name, str):
-        raise ScenarioError("name", name, "a string")
-    line_name = data.get("line", "heavy-haul")
-    if not isinstance(line_name, str):
-        raise ScenarioError("line", line_name, "a shipped line name or a line file path")
-    line = load_line(line_name)
-    margin = _number(data, "margin_kmh", "", 0.0, 50.0, 5.0)
-    seed = _integer(data, "seed", "", 0, MAX_SEED, 0)
-    duration_s = _number(data, "duration_h", "", 0.01, 7 * 24.0, 9.0) * 3600.0
-    epoch_s = _number(data, "start_epoch_s", "", 1.0, 4.0e9, DEFAULT_EPOCH_S)
-    channel_table = data.get("channel", {})
-    if not isinstance(channel_table, Mapping):
-        raise ScenarioError("channel", channel_table, "a [channel] table")
-    channel = ChannelModel.from_mapping(channel_table)
-    retiming = _retiming(data.get("retiming", {}))
-    trains = data.get("trains", {})
-    if not isinstance(trains, Mapping):
-        raise ScenarioError("trains", trains, "a [trains] table")
-    _check_keys(trains, "trains", ("model",))
-    model = trains.get("model", "point-mass")
-    if model not in TRAIN_MODELS:
-        raise ScenarioError("trains.model", model, f"one of {', '.join(TRAIN_MODELS)}")
-    services = _services(data.get("services"), line, margin)
-    events = _events(
-        data.get("events", []), line, epoch_s, duration_s, {s.train_id for s in services}
-    )
+    top = check(LineRunFileTable, data, ScenarioError, top="scenario")
+    line = load_line(top.line)
+    margin = float(top.margin_kmh)
+    duration_s = float(top.duration_h) * 3600.0
+    epoch_s = float(top.start_epoch_s) if top.given("start_epoch_s") else DEFAULT_EPOCH_S
+    channel = ChannelModel.from_mapping(top.channel)
+    retiming = _retiming(top.retiming)
+    services = _services(top.services, data["services"], line, margin)
+    events = _events(top.events, line, epoch_s, duration_s, {s.train_id for s in services})
     return LineScenario(
-        name, line, services, channel, seed, duration_s, epoch_s, margin, events, retiming, model
+        top.name,
+        line,
+        services,
+        channel,
+        top.seed,
+        duration_s,
+        epoch_s,
+        margin,
+        events,
+        retiming,
+        top.trains.model,
     )
 
 
-def load_scenario(path: str | os.PathLike[str]) -> LineScenario:
-    """Read and check a line-run file; errors name the file."""
-    p = Path(path)
-    data = read_toml(path, "SCENARIO", "line-run file", ScenarioError)
+def load_line_scenario(path: str | os.PathLike[str]) -> LineScenario:
+    """Read and check a line-run file (TOML, or JSON if its name ends in ``.json``);
+    errors name the file."""
+    name = os.path.basename(path)
+    data = read_document(path, "SCENARIO", "line-run file", ScenarioError)
     try:
-        return scenario_from_mapping(data)
+        return line_scenario_from_mapping(data)
     except ConfigError as error:
-        raise ScenarioError(f"{p.name}: {error.field}", error.value, error.allowed) from None
+        raise ScenarioError(f"{name}: {error.field}", error.value, error.allowed) from None

@@ -1,6 +1,6 @@
 """What the line's own equipment sees, once a second: where every train is, the signals'
 aspects (the cab signal each train sees), and every TSR, red signal and static speed
-limit against what the trains do (issue 12; docs/line-run.md "KPIs").
+limit against what the trains do (docs/line-run.md "KPIs").
 
 :class:`Trackside` is the truth the KPIs come from, not what the trains or the ground
 believe. It has no transport and no clock of its own: a run hands it what it saw

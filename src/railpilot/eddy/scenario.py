@@ -23,7 +23,9 @@ except ``torque_demand_nm`` and ``initial_speed_kmh``; defaults = the documented
                 current_step_a, max_speed_kmh, speed_step_kmh (grid of the analytic model)
     [metrics]   settling_band, hold_band, steady_start_s, steady_end_speed_kmh
 
-Unknown keys are rejected with a :class:`~railpilot.errors.ScenarioError` naming the key.
+Every key is checked by the format's models (railpilot.schema.eddy, its JSON Schema:
+``railpilot schema eddy-brake``); an unknown key, a wrong type or a value out of range is a
+:class:`~railpilot.errors.ScenarioError` naming the key, the value and what is allowed.
 """
 
 from __future__ import annotations
@@ -31,11 +33,12 @@ from __future__ import annotations
 import math
 import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
+from pydantic import Field
 
 from railpilot.checks import check_count, check_number
 from railpilot.control.base import Controller
@@ -48,101 +51,60 @@ from railpilot.eddy.simulate import MAX_STEPS, EddyResult, simulate_eddy
 from railpilot.eddy.table import TorqueTable, load_torque_table_csv
 from railpilot.eddy.torque_model import EddyBrakeParams
 from railpilot.eddy.train import TrainParams
-from railpilot.errors import ConfigError, ScenarioError, is_finite_number
+from railpilot.errors import ConfigError, ScenarioError
+from railpilot.schema.config import ConfigTable, config_kwargs, config_table
+from railpilot.schema.eddy import (
+    CONTROLLERS,
+    FUZZY_DEFAULTS,
+    FUZZY_PI_DEFAULTS,
+    KIND,
+    MAX_DT_S,
+    MAX_DURATION_S,
+    MAX_INITIAL_SPEED_KMH,
+    MAX_TORQUE_DEMAND_NM,
+    METRICS_DEFAULTS,
+    PID_DEFAULTS,
+    TABLE_GRID_DEFAULTS,
+    EddyScenarioKeys,
+    FuzzyPiTable,
+    FuzzyTable,
+    MetricsTable,
+    ParamsWords,
+    PidTable,
+    TableGridTable,
+)
+from railpilot.schema.fields import FileTable
+from railpilot.schema.validate import check
 from railpilot.units import kmh_to_mps, mps_to_kmh
 
-KIND = "eddy-brake"
-CONTROLLERS: tuple[str, ...] = ("open_loop", "pid", "fuzzy", "fuzzy_pi")
+T = TypeVar("T")
 
-#: Paper 003 section 3.1 gains; the derivative filter is Simulink's default N = 100.
-PID_DEFAULTS: dict[str, float] = {"kp": 1.5, "ki": 0.00125, "kd": 0.25, "derivative_filter_s": 0.01}
-#: Our tuning (grid search, docs/paper-003-eddy-brake.md).
-FUZZY_DEFAULTS: dict[str, float] = {
-    "e_scale": 2000.0,
-    "ce_scale": 100_000.0,
-    "u_scale": 10_000.0,
-    "ce_filter_s": 0.01,
-    "n_grid": 51,
-}
-FUZZY_PI_DEFAULTS: dict[str, float] = {
-    "kp1": 5.0,
-    "ki1": 0.0,
-    "kp_span": 1.0,
-    "ki_span": 0.0,
-    "e_scale": 3500.0,
-    "ce_scale": 30_000.0,
-    "ce_filter_s": 0.01,
-    "n_grid": 51,
-}
-TABLE_GRID_DEFAULTS: dict[str, float] = {
-    "max_current_a": 500.0,
-    "current_step_a": 2.0,
-    "max_speed_kmh": 300.0,
-    "speed_step_kmh": 0.5,
-}
-METRICS_DEFAULTS: dict[str, float] = {
-    "settling_band": 0.02,
-    "hold_band": 0.01,
-    "steady_start_s": 5.0,
-    "steady_end_speed_kmh": 30.0,
-}
-TOP_KEYS = {
-    "kind": str,
-    "name": str,
-    "torque_demand_nm": float,
-    "initial_speed_kmh": float,
-    "duration_s": float,
-    "dt_s": float,
-    "record_every": int,
-    "controller": str,
-}
-SECTIONS = ("pid", "fuzzy", "fuzzy_pi", "brake", "coil", "train", "table", "metrics")
-#: Fastest initial speed [km/h] (and so the fastest speed the metrics can name)
-MAX_INITIAL_SPEED_KMH = 400.0
-#: Longest run [s]: the paper's runs take 100 s and an eddy brake stops a train from the
-#: fastest initial speed in minutes; every step is kept for the metrics
-MAX_DURATION_S = 3600.0
-#: Largest torque demand [N m]: far above what a wheel's adhesion can take (the paper
-#: demands 3500-4500 N m)
-MAX_TORQUE_DEMAND_NM = 100_000.0
+__all__ = [
+    "CONTROLLERS",
+    "FUZZY_DEFAULTS",
+    "FUZZY_PI_DEFAULTS",
+    "KIND",
+    "METRICS_DEFAULTS",
+    "PID_DEFAULTS",
+    "TABLE_GRID_DEFAULTS",
+    "EddyScenario",
+    "EddyScenarioFile",
+]
 
 
-def _number(key: str, value: Any, *, integer: bool = False) -> float:
-    if isinstance(value, bool) or not isinstance(value, int | float):
-        raise ScenarioError(key, value, "an integer" if integer else "a number")
-    if integer and not (isinstance(value, int) or value.is_integer()):
-        raise ScenarioError(key, value, "an integer")
-    if not is_finite_number(value):  # nan, inf, and an int no float holds (10**400)
-        raise ScenarioError(key, value, "a finite number")
-    return float(value)
+class EddyScenarioFile(EddyScenarioKeys):
+    """An eddy-current brake scenario file (railpilot.schema.eddy), with the brake's,
+    coil's and train's tables derived from their config dataclasses."""
 
-
-def _section(data: Mapping[str, Any], name: str, defaults: Mapping[str, float]) -> dict[str, float]:
-    raw = data.get(name, {})
-    if not isinstance(raw, Mapping):
-        raise ScenarioError(name, raw, "a table of keys")
-    out = dict(defaults)
-    for key, value in raw.items():
-        if key not in defaults:
-            raise ScenarioError(f"{name}.{key}", value, "one of " + ", ".join(sorted(defaults)))
-        out[key] = _number(f"{name}.{key}", value, integer=key == "n_grid")
-    return out
-
-
-def _dataclass_section(data: Mapping[str, Any], name: str, cls: type) -> Any:
-    raw = data.get(name, {})
-    if not isinstance(raw, Mapping):
-        raise ScenarioError(name, raw, "a table of keys")
-    names = [f.name for f in fields(cls)]
-    kwargs = {}
-    for key, value in raw.items():
-        if key not in names:
-            raise ScenarioError(f"{name}.{key}", value, "one of " + ", ".join(names))
-        kwargs[key] = _number(f"{name}.{key}", value)
-    try:
-        return cls(**kwargs)
-    except ConfigError as exc:
-        raise ScenarioError(exc.field, exc.value, exc.allowed) from None
+    brake: config_table(EddyBrakeParams, words=ParamsWords) = Field(  # type: ignore[valid-type]
+        default_factory=config_table(EddyBrakeParams, words=ParamsWords)
+    )
+    coil: config_table(CoilParams, words=ParamsWords) = Field(  # type: ignore[valid-type]
+        default_factory=config_table(CoilParams, words=ParamsWords)
+    )
+    train: config_table(TrainParams, words=ParamsWords) = Field(  # type: ignore[valid-type]
+        default_factory=config_table(TrainParams, words=ParamsWords)
+    )
 
 
 def _check_metrics(metrics: Mapping[str, float]) -> None:
@@ -190,7 +152,7 @@ def _check_run_number(key: str, value: object) -> float:
 def _check_dt(value: object, duration: float) -> float:
     """The step [s] of a run ``duration`` [s] long: at most 10 ms and the whole run, and
     at most :data:`~railpilot.eddy.simulate.MAX_STEPS` steps."""
-    top = min(duration, 1e-2)
+    top = min(duration, MAX_DT_S)
     dt = check_number(
         "dt_s",
         value,
@@ -214,14 +176,30 @@ def _check_record_every(value: object) -> int:
     return check_count("record_every", value, 1, allowed="an integer >= 1", error=ScenarioError)
 
 
-#: the scenario's sections of numbers, with their keys and defaults
-_NUMBER_SECTIONS: dict[str, dict[str, float]] = {
-    "pid": PID_DEFAULTS,
-    "fuzzy": FUZZY_DEFAULTS,
-    "fuzzy_pi": FUZZY_PI_DEFAULTS,
-    "table_grid": TABLE_GRID_DEFAULTS,
-    "metrics": METRICS_DEFAULTS,
+#: the scenario's sections of numbers: their keys' defaults and their model
+_NUMBER_SECTIONS: dict[str, tuple[dict[str, float], type[FileTable]]] = {
+    "pid": (PID_DEFAULTS, PidTable),
+    "fuzzy": (FUZZY_DEFAULTS, FuzzyTable),
+    "fuzzy_pi": (FUZZY_PI_DEFAULTS, FuzzyPiTable),
+    "table_grid": (TABLE_GRID_DEFAULTS, TableGridTable),
+    "metrics": (METRICS_DEFAULTS, MetricsTable),
 }
+
+
+def _settings(table: FileTable, defaults: Mapping[str, float]) -> dict[str, float]:
+    """The defaults, with the numbers the file gives (as floats) in their place."""
+    out = dict(defaults)
+    out.update({key: float(getattr(table, key)) for key in table.model_fields_set})
+    return out
+
+
+def _params(table: ConfigTable, cls: type[T]) -> T:
+    """A brake's, coil's or train's parameters from its table (the dataclass's defaults
+    for the keys it leaves out; the dataclass checks the values)."""
+    try:
+        return cls(**config_kwargs(table, cls, lambda *_: None))
+    except ConfigError as exc:
+        raise ScenarioError(exc.field, exc.value, exc.allowed) from None
 
 
 @dataclass(frozen=True)
@@ -255,9 +233,9 @@ class EddyScenario:
             raise ScenarioError("name", self.name, "a string")
         if not (isinstance(self.controller, str) and self.controller in CONTROLLERS):
             raise ScenarioError("controller", self.controller, "one of " + ", ".join(CONTROLLERS))
-        for key, defaults in _NUMBER_SECTIONS.items():
+        for key, (defaults, model) in _NUMBER_SECTIONS.items():
             value = getattr(self, key)
-            _section({key: value}, key, defaults)  # a mapping of known keys to numbers
+            check(model, value, ScenarioError, at=(key,))  # known keys, each a number
             if set(value) != set(defaults):
                 raise ScenarioError(key, value, "a table of " + ", ".join(sorted(defaults)))
         _check_metrics(self.metrics)
@@ -271,72 +249,38 @@ class EddyScenario:
     @classmethod
     def from_mapping(cls, data: Mapping[str, Any], base_dir: Path | None = None) -> EddyScenario:
         """Validate a mapping as parsed from TOML; ``base_dir`` resolves ``table.csv``."""
-        if not isinstance(data, Mapping):
-            raise ScenarioError("scenario", data, "a table of keys")
-        for key, value in data.items():
-            if key not in TOP_KEYS and key not in SECTIONS:
-                allowed = ", ".join(sorted([*TOP_KEYS, *SECTIONS]))
-                raise ScenarioError(key, value, f"one of {allowed}")
-        kind = data.get("kind", KIND)
-        if kind != KIND:
-            raise ScenarioError("kind", kind, f"'{KIND}'")
-        for required in ("torque_demand_nm", "initial_speed_kmh"):
-            if required not in data:
-                raise ScenarioError(required, None, "a number (this key is required)")
-        name = data.get("name", "eddy-brake")
-        if not isinstance(name, str):
-            raise ScenarioError("name", name, "a string")
-        controller = data.get("controller", "fuzzy_pi")
-        if controller not in CONTROLLERS:
-            raise ScenarioError("controller", controller, "one of " + ", ".join(CONTROLLERS))
-        demand = _check_run_number(
-            "torque_demand_nm", _number("torque_demand_nm", data["torque_demand_nm"])
-        )
-        speed = _check_run_number(
-            "initial_speed_kmh", _number("initial_speed_kmh", data["initial_speed_kmh"])
-        )
-        duration = _check_run_number(
-            "duration_s", _number("duration_s", data.get("duration_s", 100.0))
-        )
-        dt = _check_dt(_number("dt_s", data.get("dt_s", 1e-4)), duration)
-        record_every = _check_record_every(
-            int(_number("record_every", data.get("record_every", 10), integer=True))
-        )
-
-        table_raw = data.get("table", {})
-        if not isinstance(table_raw, Mapping):
-            raise ScenarioError("table", table_raw, "a table of keys")
+        top = check(EddyScenarioFile, data, ScenarioError, top="scenario")
+        duration = float(top.duration_s)
+        dt = _check_dt(float(top.dt_s), duration)
         table_csv = None
-        grid_raw = dict(table_raw)
-        if "csv" in grid_raw:
-            csv = grid_raw.pop("csv")
-            if not isinstance(csv, str) or not csv:
-                raise ScenarioError("table.csv", csv, "a path string")
-            table_csv = (base_dir / csv) if base_dir is not None else Path(csv)
-            if grid_raw:
+        if top.table.given("csv"):
+            grid_keys = sorted(top.table.model_fields_set - {"csv"})
+            if grid_keys:
                 raise ScenarioError(
-                    "table", sorted(grid_raw), "either csv or the model grid keys, not both"
+                    "table", grid_keys, "either csv or the model grid keys, not both"
                 )
-        table_grid = _section({"table": grid_raw}, "table", TABLE_GRID_DEFAULTS)
-        metrics = _section(data, "metrics", METRICS_DEFAULTS)
+            table_csv = (base_dir / top.table.csv) if base_dir is not None else Path(top.table.csv)
+        metrics = _settings(top.metrics, METRICS_DEFAULTS)
         _check_metrics(metrics)
 
         scenario = cls(
-            torque_demand_nm=demand,
-            initial_speed_kmh=speed,
-            name=name,
+            torque_demand_nm=float(top.torque_demand_nm),
+            initial_speed_kmh=float(top.initial_speed_kmh),
+            name=top.name,
             duration_s=duration,
             dt_s=dt,
-            record_every=record_every,
-            controller=controller,
-            pid=_section(data, "pid", PID_DEFAULTS),
-            fuzzy=_section(data, "fuzzy", FUZZY_DEFAULTS),
-            fuzzy_pi=_section(data, "fuzzy_pi", FUZZY_PI_DEFAULTS),
-            brake=_dataclass_section(data, "brake", EddyBrakeParams),
-            coil=_dataclass_section(data, "coil", CoilParams),
-            train=_dataclass_section(data, "train", TrainParams),
+            record_every=top.record_every,
+            controller=top.controller,
+            pid=_settings(top.pid, PID_DEFAULTS),
+            fuzzy=_settings(top.fuzzy, FUZZY_DEFAULTS),
+            fuzzy_pi=_settings(top.fuzzy_pi, FUZZY_PI_DEFAULTS),
+            brake=_params(top.brake, EddyBrakeParams),
+            coil=_params(top.coil, CoilParams),
+            train=_params(top.train, TrainParams),
             table_csv=table_csv,
-            table_grid=table_grid,
+            table_grid=_settings(top.table, TABLE_GRID_DEFAULTS)
+            if table_csv is None
+            else dict(TABLE_GRID_DEFAULTS),
             metrics=metrics,
         )
         table = scenario.build_table()

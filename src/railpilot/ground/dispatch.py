@@ -33,6 +33,7 @@ from railpilot.link import (
     Event,
     FrameRejected,
     LinkFailed,
+    Message,
     MessageReceived,
     PeriodicTimedOut,
     PlannedCurve,
@@ -56,6 +57,7 @@ from .occupancy import (
     compute_occupancy,
     line_end_m,
 )
+from .online_retimer import OnlineRetimer
 from .operations import (
     CancelTsr,
     ClearRestriction,
@@ -69,7 +71,6 @@ from .operations import (
     config_error_field,
 )
 from .registry import TrainRegistry
-from .retimer import OnlineRetimer
 from .store import Snapshot
 from .targets import DeclaredRestriction, TargetPointTracker, is_clear
 from .tsr_manager import Cancel, Deliver, LineTsr, LineTsrState, TrainRoute, TsrManager
@@ -116,6 +117,16 @@ class SendDispatchCommand:
 
 
 @dataclass(frozen=True)
+class DeliverMessage:
+    """Send ``message``, of a kind the ground keeps per train (``Message.KIND``), to each
+    of ``train_ids``: resent until acknowledged, also after a restart of the ground."""
+
+    train_ids: tuple[int, ...]
+    message: Message
+    actor: str
+
+
+@dataclass(frozen=True)
 class SendRunningTimes:
     """Send ``times`` to ``train_id`` now if it is registered (unacknowledged; not kept:
     the re-timing is derived state, and a train that registers later is sent its last
@@ -126,8 +137,17 @@ class SendRunningTimes:
 
 
 #: what the ground keeps in its store before it leaves (ground/journal.py)
-KeptCommand = DeliverTsr | CancelTsrOn | SendTargetPoint | SendDispatchCommand
+KeptCommand = DeliverTsr | CancelTsrOn | SendTargetPoint | SendDispatchCommand | DeliverMessage
 Command = KeptCommand | SendRunningTimes
+
+
+def kept_message(command: SendTargetPoint | SendDispatchCommand | DeliverMessage) -> Message:
+    """The kept message (``Message.KIND``) a command delivers."""
+    if isinstance(command, SendTargetPoint):
+        return command.target
+    if isinstance(command, SendDispatchCommand):
+        return command.command
+    return command.message
 
 
 def command_trains(command: Command) -> tuple[int, ...]:
@@ -189,7 +209,7 @@ class GroundDispatch:
             lambda: deque(maxlen=HISTORY_SAMPLES)
         )
         self.occupancy: Occupancy | None = None
-        #: re-timing in the loop (ground/retimer.py), if the ground holds the timetables
+        #: re-timing in the loop (ground/online_retimer.py), if the ground holds the timetables
         self.retimer: OnlineRetimer | None = None
         self._next_command = 1
         #: bumped by every change a dispatcher's view should show
@@ -292,7 +312,7 @@ class GroundDispatch:
     def tick_targets(self, now_s: float) -> list[Command]:
         """The second half of :meth:`tick`: the target points that changed, from the
         occupancy of the first half; then the running times of a re-timing, if one is due
-        (ground/retimer.py)."""
+        (ground/online_retimer.py)."""
         if self.occupancy is None:
             self.occupancy = self.compute_occupancy(now_s)
         events = self.targets.update(self.occupancy, self.restrictions.values(), now_s=now_s)

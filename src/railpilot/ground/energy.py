@@ -1,6 +1,6 @@
-"""Energy-time curves of a line's sections, from the onboard planner (issue 11 item 2).
+"""Energy-time curves of a line's sections, from the onboard planner.
 
-The re-timing LP (ground/retime.py) trades lateness against energy through one convex
+The re-timing LP (ground/running_time_lp.py) trades lateness against energy through one convex
 curve per section: net energy [kWh] against running time [s]. In the paper's system the
 onboard computes its planned curve for the running time the ground sends; here the ground
 asks the same planner (onboard/planner.py, through the route construction of
@@ -10,7 +10,7 @@ section at a few running times and keeps the lower convex hull of the answers.
 Samples: the fastest run ``T_f`` and ``factor x T_f`` for each factor (1.03 to 1.30 by
 default), plus any running times asked for (the timetable's, so that the fixed plan's
 energy is the planner's own). Energy: traction drawn minus regeneration returned
-(``PlannedCurve.energy_net_kwh``), negative where the section descends enough.
+(``SpeedPlan.energy_net_kwh``), negative where the section descends enough.
 
 The planner's energy is not always monotone or convex in the running time: on steep
 descents it moves between its strategies in a sawtooth (docs/onboard.md, "Not met, on
@@ -30,7 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from railpilot.errors import ConfigError
-from railpilot.ground.retime import EnergyCurve
+from railpilot.ground.running_time_lp import EnergyCurve
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.onboard.drive import DEFAULT_MARGIN_KMH, TrainPreset, departure_section
 from railpilot.onboard.mrsp import travelled_m

@@ -28,11 +28,13 @@ from enum import Enum
 from typing import Any
 
 from railpilot.link import (
+    DeliveryAcknowledged,
     DeliveryState,
     DispatchAcknowledged,
     DispatchCommand,
     Event,
     GroundEndpoint,
+    Message,
     TargetPoint,
     TargetPointAcknowledged,
     TrainDeregistered,
@@ -48,6 +50,7 @@ from railpilot.link.ground import Delivery, TsrDelivery
 
 from .dispatch import (
     CancelTsrOn,
+    DeliverMessage,
     DeliverTsr,
     KeptCommand,
     SendTargetPoint,
@@ -62,7 +65,8 @@ from .targets import DeclaredRestriction
 #: (sent now) or on its record (sent on its next registration).
 Apply = Callable[[GroundEndpoint | TrainRecord, float], None]
 
-#: The audit log's name of each event it keeps (TrainRegistered also updates ``trains``).
+#: The audit log's name of each event it keeps (TrainRegistered also updates ``trains``);
+#: a DeliveryAcknowledged is named after its kind (:func:`audit_name`).
 EVENT_NAMES: dict[type, str] = {
     TsrAcknowledged: "tsr_acknowledged",
     TsrCancelAcknowledged: "tsr_cancel_acknowledged",
@@ -72,7 +76,15 @@ EVENT_NAMES: dict[type, str] = {
     TrainRegistered: "registered",
     TrainDeregistered: "deregistered",
 }
-_AUDITED = tuple(EVENT_NAMES)
+_AUDITED = (*EVENT_NAMES, DeliveryAcknowledged)
+
+
+def audit_name(event: Event) -> str:
+    """The audit log's (and the server log's) name of an event it keeps."""
+    if isinstance(event, DeliveryAcknowledged):
+        return f"{event.kind}_acknowledged"
+    return EVENT_NAMES[type(event)]
+
 
 #: ((kind, train id, id), (state, message) now, (state, message) committed or None)
 _Change = tuple[tuple[str, int, int], tuple[Enum, Any], tuple[Enum, Any] | None]
@@ -106,13 +118,15 @@ def tsr_cancel_request(session: int, actor: str) -> Request:
     return Request("tsr_cancel", actor, {"session": session}, cancels=session)
 
 
+def kept_request(message: Message, actor: str) -> Request:
+    """The request to deliver a kept message (``Message.KIND``): named after its kind, its
+    fields as the detail (enums by name)."""
+    detail = {f.name: getattr(message, f.name) for f in dataclass_fields(message)}
+    return Request(message.KIND, actor, {k: getattr(v, "name", v) for k, v in detail.items()})
+
+
 def target_point_request(target: TargetPoint, actor: str) -> Request:
-    detail = {
-        "target_id": target.target_id,
-        "position_m": target.position_m,
-        "reason": target.reason.name,
-    }
-    return Request("target_point", actor, detail)
+    return kept_request(target, actor)
 
 
 def dispatch_request(command: DispatchCommand, actor: str) -> Request:
@@ -128,6 +142,8 @@ def command_request(command: KeptCommand) -> Request:
         return tsr_cancel_request(command.session, command.actor)
     if isinstance(command, SendTargetPoint):
         return target_point_request(command.target, command.actor)
+    if isinstance(command, DeliverMessage):
+        return kept_request(command.message, command.actor)
     return dispatch_request(command.command, command.actor)
 
 
@@ -209,23 +225,14 @@ class GroundJournal:
             counts.update(st.name for st in stored.tsrs.values())
             self._remember((("tsr", train_id, s), (d.state, d.tsr), None) for s, d in tsrs.items())
             books: dict[str, dict[int, Delivery]] = {}
-            for kind, items in (
-                ("target_point", stored.target_points),
-                ("dispatch_command", stored.dispatch_commands),
-            ):
+            for kind, items in stored.deliveries.items():
                 books[kind] = {i: Delivery(message, st) for i, (message, st) in items.items()}
                 counts.update(st.name for _, st in items.values())
                 self._remember(
                     ((kind, train_id, i), (st, message), None) for i, (message, st) in items.items()
                 )
             # made from its books, the record indexes their unacknowledged deliveries
-            record = TrainRecord(
-                train_id,
-                registration=stored.registration,
-                tsrs=tsrs,
-                target_points=books["target_point"],
-                dispatch_commands=books["dispatch_command"],
-            )
+            record = TrainRecord(train_id, registration=stored.registration, tsrs=tsrs, books=books)
             record.history.not_before_us = not_before_us
             records[train_id] = record
         summary = {
@@ -301,7 +308,7 @@ class GroundJournal:
             values = {f.name: getattr(request, f.name) for f in dataclass_fields(request)}
         detail = {k: getattr(v, "name", v) for k, v in values.items()}  # enums by name
         self.store.audit(
-            EVENT_NAMES[type(event)],
+            audit_name(event),
             actor=f"train {train_id}",
             at_s=now_s,
             train_id=train_id,
@@ -375,11 +382,10 @@ class GroundJournal:
 def _scratch(record: TrainRecord) -> TrainRecord:
     """A copy of the delivery books of ``record`` to try a request on (the record methods
     touch nothing else). The TSRs are copied one by one (a cancellation changes one);
-    the target points and dispatch commands share their deliveries, because a request
-    only adds to those books (and they hold every one the train was ever sent)."""
+    the kept messages' books share their deliveries, because a request only adds to
+    those books (and they hold every one the train was ever sent)."""
     return TrainRecord(
         record.train_id,
         tsrs={s: replace(d) for s, d in record.tsrs.items()},
-        dispatch_commands=dict(record.dispatch_commands),
-        target_points=dict(record.target_points),
+        books={kind: dict(book) for kind, book in record.books.items()},
     )

@@ -2,8 +2,10 @@
 
 Every way a dispatcher acts on the ground sends the same request: an operation name and
 its fields, in the dispatcher's units (km posts in km, speeds in km/h, times in minutes
-from now). :func:`parse_operation` validates it once, against the line, and returns a
-typed operation for :class:`~railpilot.ground.dispatch.GroundDispatch` to carry out:
+from now). Each operation's fields are one model (railpilot.schema.operations, also the
+JSON Schema of a line run's ``[[events]]``); :func:`parse_operation` reads a request by it,
+checks the rules that need the line or several fields, and returns a typed operation for
+:class:`~railpilot.ground.dispatch.GroundDispatch` to carry out:
 
 =====================  =========================================================================
 operation              fields (``?``: optional)
@@ -34,25 +36,49 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from railpilot.errors import ConfigError, RailpilotError, is_finite_number, readable, shown
+from pydantic_core import PydanticCustomError
+
+from railpilot.errors import ConfigError, RailpilotError, readable, shown
 from railpilot.line.model import DOWN, UP, RailLine
-from railpilot.link.messages import U32_MAX, TargetReason, TravelDirection
-from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post, mps_to_kmh
+from railpilot.link.messages import TargetReason, TravelDirection
+from railpilot.schema.operations import (
+    MAX_LIMIT_KMH,
+    MAX_REASON_CHARS,
+    MAX_TEXT_BYTES,
+    MAX_TRAINS,
+    MAX_VALIDITY_MIN,
+    OPERATIONS,
+    OPS,
+    REFUSED,
+    blank,
+    expected_fields,
+)
+from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post
 
 from .occupancy import blocks_by_id
 from .targets import DECLARED_REASONS, DeclaredRestriction
 from .tsr_manager import LineTsr
 
-#: Longest validity a TSR may ask for [min] (30 days).
-MAX_VALIDITY_MIN = 30 * 24 * 60.0
-#: Longest reason [characters].
-MAX_REASON_CHARS = 200
-#: Longest dispatch command text [bytes of UTF-8] (the link's limit).
-MAX_TEXT_BYTES = 1000
-#: Highest TSR limit [km/h] (a LineTsr's 100 m/s).
-MAX_LIMIT_KMH = mps_to_kmh(100.0)
-#: Most train ids one request may name.
-MAX_TRAINS = 5000
+__all__ = [
+    "FIELDS",
+    "MAX_LIMIT_KMH",
+    "MAX_REASON_CHARS",
+    "MAX_TEXT_BYTES",
+    "MAX_TRAINS",
+    "MAX_VALIDITY_MIN",
+    "OPS",
+    "CancelTsr",
+    "ClearRestriction",
+    "Operation",
+    "OperationError",
+    "SendDispatch",
+    "SendTarget",
+    "SetRestriction",
+    "SetTsr",
+    "Status",
+    "config_error_field",
+    "parse_operation",
+]
 
 
 class OperationError(RailpilotError):
@@ -137,21 +163,14 @@ Operation = (
     SetTsr | CancelTsr | SetRestriction | ClearRestriction | SendTarget | SendDispatch | Status
 )
 
-#: Each operation's fields: (required, optional).
+#: Each operation's fields: (required, optional), from its model.
 FIELDS: Mapping[str, tuple[tuple[str, ...], tuple[str, ...]]] = {
-    "tsr_set": (
-        ("start_km", "end_km", "limit_kmh", "valid_until_min", "reason"),
-        ("valid_from_min", "session", "trains"),
-    ),
-    "tsr_cancel": (("session",), ()),
-    "restriction_set": (("reason",), ("block", "start_km", "end_km", "track", "id")),
-    "restriction_clear": (("id",), ()),
-    "target": (("trains", "km"), ("reason",)),
-    "dispatch": (("trains", "text"), ("command",)),
-    "status": ((), ()),
+    op: (
+        tuple(name for name, kind in model.field_kinds().items() if kind.required),
+        tuple(name for name, kind in model.field_kinds().items() if not kind.required),
+    )
+    for op, model in OPERATIONS.items()
 }
-OPS = tuple(FIELDS)
-
 
 # ---------------------------------------------------------------------------- parsing
 
@@ -176,108 +195,77 @@ def _as_typed(value: object) -> str:
     return repr(value) if value is None or isinstance(value, bool) else str(value)
 
 
-def _blank(value: object) -> bool:
-    return value is None or (isinstance(value, str) and not value.strip())
-
-
 class _Fields:
-    """Reads one request's fields, collecting an error per bad field."""
+    """One request's fields as read by the operation's model, collecting an error per bad
+    field as the operation reads it (so they come in the operation's order)."""
 
-    def __init__(self, fields: Mapping[str, Any]) -> None:
+    def __init__(self, fields: Mapping[str, Any], read: Mapping[str, Any]) -> None:
         self.fields = fields
+        self.read = read
         self.errors: dict[str, str] = {}
 
     def bad(self, name: str, value: object, expected: str) -> None:
         self.errors.setdefault(name, f"{_show(value)} is not allowed: expected {expected}")
 
     def present(self, name: str) -> bool:
-        return not _blank(self.fields.get(name))
+        return not blank(self.fields.get(name))
 
-    def number(
-        self, name: str, what: str, lo: float, hi: float, default: float | None = None
-    ) -> float:
-        """A finite number in [lo, hi]; a form's text is accepted ("12.5")."""
-        raw = self.fields.get(name)
-        if _blank(raw):
-            if default is not None:
-                return default
-            self.errors.setdefault(name, f"required: {what}")
-            return math.nan
-        value: float | None = None
-        if isinstance(raw, int | float) and not isinstance(raw, bool):
-            # an int no float holds (10**400) is no number either
-            value = float(raw) if is_finite_number(raw) else None
-        elif isinstance(raw, str):
-            try:
-                value = float(raw.strip())
-            except ValueError:
-                value = None
-        if value is None or not math.isfinite(value):
-            self.bad(name, raw, f"a number ({what}, {lo:g} to {hi:g})")
-            return math.nan
-        if not lo <= value <= hi:
-            self.bad(name, raw, f"{what}, {lo:g} to {hi:g}")
-            return math.nan
+    def get(self, name: str, fallback: Any) -> Any:
+        """The field's value, or ``fallback`` once its error is recorded."""
+        value = self.read[name]
+        if isinstance(value, _Fault):
+            self.errors.setdefault(name, value.message)
+            return fallback
         return value
 
-    def integer(self, name: str, what: str, lo: int, hi: int) -> int | None:
-        raw = self.fields.get(name)
-        if _blank(raw):
-            return None
-        value = raw
-        if isinstance(raw, str) and raw.strip().isdigit():
-            value = int(raw.strip())
-        if type(value) is not int or not lo <= value <= hi:
-            self.bad(name, raw, f"{what}, an integer in [{lo}, {hi}]")
-            return None
+    def number(self, name: str) -> float:
+        value: float = self.get(name, math.nan)
         return value
 
-    def text(self, name: str, what: str, max_len: int, *, required: bool) -> str:
-        raw = self.fields.get(name)
-        if _blank(raw):
-            if required:
-                self.errors.setdefault(name, f"required: {what}")
-            return ""
-        if not isinstance(raw, str) or len(raw) > max_len or not raw.isprintable():
-            self.bad(name, raw, f"{what}, at most {max_len} printable characters")
-            return ""
-        return raw.strip()
+    def integer(self, name: str) -> int | None:
+        value: int | None = self.get(name, None)
+        return value
 
-    def choice(self, name: str, choices: Mapping[str, Any], default: str | None) -> Any:
-        raw = self.fields.get(name)
-        if _blank(raw) and default is not None:
-            return choices[default]
-        key = raw.strip().lower().replace("-", "_") if isinstance(raw, str) else None
-        if key is None or key not in choices:
-            if _blank(raw):
-                self.errors.setdefault(name, f"required: one of {', '.join(choices)}")
+    def text(self, name: str) -> str:
+        value: str = self.get(name, "")
+        return value
+
+    def choice(self, name: str, choices: Mapping[str, Any]) -> Any:
+        word = self.get(name, None)
+        return None if word is None else choices[word]
+
+    def trains(self) -> tuple[int, ...]:
+        value: tuple[int, ...] = self.get("trains", ())
+        return value
+
+
+@dataclass(frozen=True)
+class _Fault:
+    """A field its kind refused: the error's message."""
+
+    message: str
+
+
+def _read(op: str, fields: Mapping[str, Any], line: RailLine) -> dict[str, Any]:
+    """Each field of operation ``op`` read from ``fields`` by its kind (railpilot.schema.
+    operations), or the :class:`_Fault` it refused it for."""
+    context = {
+        "line": line.name,
+        "km_lo": m_to_km_post(line.start_m),
+        "km_hi": m_to_km_post(line.end_m),
+    }
+    out: dict[str, Any] = {}
+    for name, kind in OPERATIONS[op].field_kinds().items():
+        raw = fields.get(name)
+        try:
+            out[name] = kind.read(raw, context)
+        except PydanticCustomError as fault:
+            if fault.type == REFUSED:
+                expected = (fault.context or {})["expected"]
+                out[name] = _Fault(f"{_show(raw)} is not allowed: expected {expected}")
             else:
-                self.bad(name, raw, f"one of {', '.join(choices)}")
-            return None
-        return choices[key]
-
-    def trains(self, *, allow_all: bool) -> tuple[int, ...]:
-        """Train ids (``()`` for ``"all"`` where allowed, or when absent)."""
-        raw = self.fields.get("trains")
-        if raw is None:
-            return ()
-        if allow_all and raw == "all":
-            return ()
-        if isinstance(raw, str):  # a form's "1001, 1002"
-            parts = [p for p in raw.replace(",", " ").split() if p]
-            raw = [int(p) if p.isdigit() else p for p in parts]
-        if (
-            not isinstance(raw, list | tuple)
-            or not raw
-            or len(raw) > MAX_TRAINS
-            or not all(type(t) is int and 1 <= t <= U32_MAX for t in raw)
-        ):
-            also = "'all' or " if allow_all else ""
-            self.bad(
-                "trains", self.fields.get("trains"), f"{also}a list of train ids in [1, {U32_MAX}]"
-            )
-            return ()
-        return tuple(dict.fromkeys(raw))
+                out[name] = _Fault(fault.message())
+    return out
 
 
 _TARGET_REASONS = {r.name.lower(): r for r in TargetReason}
@@ -293,17 +281,17 @@ def parse_operation(
     Raises :class:`OperationError` naming every bad field; unknown fields are errors too
     (a misspelt optional field must not be silently ignored).
     """
-    if not isinstance(op, str) or op not in FIELDS:  # JSON gives lists and objects too
+    if not isinstance(op, str) or op not in OPERATIONS:  # JSON gives lists and objects too
         raise OperationError(
             {"op": f"{_show(op)} is not allowed: expected one of {', '.join(OPS)}"}
         )
     if not isinstance(fields, Mapping):
         raise OperationError({"form": f"{_show(fields)} is not allowed: expected a JSON object"})
-    required, optional = FIELDS[op]
-    f = _Fields(fields)
+    known = expected_fields(op)
+    f = _Fields(fields, _read(op, fields, line))
     for name in fields:
-        if name not in required and name not in optional:
-            allowed = ", ".join(required + optional) or "none"
+        if name not in known:
+            allowed = ", ".join(known) or "none"
             f.errors[str(name)] = f"{_show(name)} is not a field of {op}: expected only {allowed}"
     result = _PARSERS[op](f, line, now_s)
     if f.errors:
@@ -312,10 +300,8 @@ def parse_operation(
 
 
 def _km_range(f: _Fields, line: RailLine) -> tuple[float, float]:
-    lo, hi = m_to_km_post(line.start_m), m_to_km_post(line.end_m)
-    what = f"a km post on line {line.name}"
-    start = f.number("start_km", what, lo, hi)
-    end = f.number("end_km", what, lo, hi)
+    start = f.number("start_km")
+    end = f.number("end_km")
     # in whole cm, as the link carries km posts: 1 mm apart is the same post on the wire
     if math.isfinite(start) and math.isfinite(end) and round(end * 1e5) <= round(start * 1e5):
         f.bad(
@@ -326,26 +312,21 @@ def _km_range(f: _Fields, line: RailLine) -> tuple[float, float]:
 
 def _tsr_set(f: _Fields, line: RailLine, now_s: float) -> SetTsr:
     start_m, end_m = _km_range(f, line)
-    limit = f.number("limit_kmh", "a speed in km/h", 0.0, MAX_LIMIT_KMH)
+    limit = f.number("limit_kmh")
     if limit == 0.0:
         above = f"a speed above 0 and at most {MAX_LIMIT_KMH:g} km/h"
         f.bad("limit_kmh", f.fields.get("limit_kmh"), above)
-    minutes = "minutes from now"
-    valid_from = f.number(
-        "valid_from_min", f"{minutes} (blank or 0: now)", 0.0, MAX_VALIDITY_MIN, 0.0
-    )
-    valid_until = f.number("valid_until_min", minutes, 0.0, MAX_VALIDITY_MIN)
+    valid_from = f.number("valid_from_min")
+    valid_until = f.number("valid_until_min")
     if math.isfinite(valid_from) and math.isfinite(valid_until) and not valid_until > valid_from:
         f.bad(
             "valid_until_min",
             f.fields.get("valid_until_min"),
             f"more minutes than valid_from_min = {valid_from:g} (the end of a TSR lies ahead)",
         )
-    reason = f.text(
-        "reason", "why the restriction is set, e.g. 'track work'", MAX_REASON_CHARS, required=True
-    )
-    session = f.integer("session", "a TSR session number", 1, U32_MAX)
-    trains = f.trains(allow_all=False)
+    reason = f.text("reason")
+    session = f.integer("session")
+    trains = f.trains()
     return SetTsr(
         start_m,
         end_m,
@@ -359,15 +340,13 @@ def _tsr_set(f: _Fields, line: RailLine, now_s: float) -> SetTsr:
 
 
 def _tsr_cancel(f: _Fields, line: RailLine, now_s: float) -> CancelTsr:
-    session = f.integer("session", "a TSR session number", 1, U32_MAX)
-    if session is None:
-        f.errors.setdefault("session", "required: a TSR session number")
+    session = f.integer("session")
     return CancelTsr(session or 0)
 
 
 def _restriction_set(f: _Fields, line: RailLine, now_s: float) -> SetRestriction:
-    reason = f.choice("reason", _DECLARED, None)
-    ident = f.integer("id", "a restriction id", 1, U32_MAX)
+    reason = f.choice("reason", _DECLARED)
+    ident = f.integer("id")
     has_block, has_span = f.present("block"), f.present("start_km") or f.present("end_km")
     restriction: DeclaredRestriction | None = None
     if has_block == has_span:
@@ -385,7 +364,7 @@ def _restriction_set(f: _Fields, line: RailLine, now_s: float) -> SetRestriction
             restriction = DeclaredRestriction.on_block(block.strip(), reason)
     else:
         start_m, end_m = _km_range(f, line)
-        track = f.choice("track", _TRACKS, "both")
+        track = f.choice("track", _TRACKS)
         if reason is not None and not f.errors:
             restriction = DeclaredRestriction.on_span(start_m, end_m, reason, track)
     if restriction is None:  # every way here has recorded its error
@@ -394,28 +373,23 @@ def _restriction_set(f: _Fields, line: RailLine, now_s: float) -> SetRestriction
 
 
 def _restriction_clear(f: _Fields, line: RailLine, now_s: float) -> ClearRestriction:
-    ident = f.integer("id", "a restriction id", 1, U32_MAX)
-    if ident is None:
-        f.errors.setdefault("id", "required: a restriction id")
+    ident = f.integer("id")
     return ClearRestriction(ident or 0)
 
 
 def _target(f: _Fields, line: RailLine, now_s: float) -> SendTarget:
-    trains = f.trains(allow_all=False)
-    if not trains:
-        f.errors.setdefault("trains", "required: a list of train ids")
-    lo, hi = m_to_km_post(line.start_m), m_to_km_post(line.end_m)
-    km = f.number("km", f"the red signal's km post on line {line.name}", lo, hi)
-    reason = f.choice("reason", _TARGET_REASONS, "other")
+    trains = f.trains()
+    km = f.number("km")
+    reason = f.choice("reason", _TARGET_REASONS)
     return SendTarget(trains, km_post_to_m(km), reason or TargetReason.OTHER)
 
 
 def _dispatch(f: _Fields, line: RailLine, now_s: float) -> SendDispatch:
-    trains = f.trains(allow_all=True)
-    text = f.text("text", "the command's text", MAX_TEXT_BYTES, required=True)
+    trains = f.trains()
+    text = f.text("text")
     if len(text.encode()) > MAX_TEXT_BYTES:
         f.bad("text", text, f"at most {MAX_TEXT_BYTES} bytes of UTF-8")
-    command = f.integer("command", "a command number", 1, U32_MAX)
+    command = f.integer("command")
     return SendDispatch(trains, text, command)
 
 

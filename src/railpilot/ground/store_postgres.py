@@ -1,7 +1,7 @@
-"""The ground store on a PostgreSQL server, for a dispatch centre (issue 11).
+"""The ground store on a PostgreSQL server, for a dispatch centre.
 
 The same store as the SQLite one - every method, refusal, audit entry and the snapshot
-come from :class:`~railpilot.ground.store.GroundStore` - on a server several ground
+come from :class:`~railpilot.ground.store_core.GroundStore` - on a server several ground
 processes may share. What differs, and why:
 
 * **Connection**: psycopg 3 in autocommit mode; the transactions are ours, explicit
@@ -37,7 +37,7 @@ from typing import Any, ClassVar, Final
 import psycopg
 from psycopg.conninfo import conninfo_to_dict, make_conninfo
 
-from railpilot.ground.store import Cursor, GroundStore, _refuse, redact_dsn
+from railpilot.ground.store_core import Cursor, GroundStore, _refuse, redact_dsn
 
 #: libpq gives up on an unreachable server after this long (unless the URL says).
 CONNECT_TIMEOUT_S: Final = 10

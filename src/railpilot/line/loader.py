@@ -1,11 +1,12 @@
 """Read a line TOML file into a :class:`~railpilot.line.model.RailLine`.
 
 km posts in km, limits in km/h, lengths and radii in m at the edge; metres and m/s inside
-(units.py). Every key is checked: an unknown key, a wrong type or an out-of-range value
-raises :class:`~railpilot.errors.LineError` naming the entry as the file writes it, e.g.
-``gradients[3] (km 12.400-11.900).end_km``, the value and what is allowed, prefixed by the
-file. Cross-entry rules (sorted, contiguous, inside the line, unique ids) are the model's
-(model.py). docs/line-data.md describes the format; the layout::
+(units.py). Every key is checked, by the format's models (railpilot.schema.line_file, its
+JSON Schema: ``railpilot schema line``): an unknown key, a wrong type or an out-of-range
+value raises :class:`~railpilot.errors.LineError` naming the entry as the file writes it,
+e.g. ``gradients[3] (km 12.400-11.900).end_km``, the value and what is allowed, prefixed by
+the file. Values' ranges and cross-entry rules (sorted, contiguous, inside the line, unique
+ids) are the model's (model.py). docs/line-data.md describes the format; the layout::
 
     name = "..."                    # required
     description = "..."             # optional free text
@@ -20,7 +21,8 @@ file. Cross-entry rules (sorted, contiguous, inside the line, unique ids) are th
     signals = [{id, km, direction = "up" | "down", kind = "home" | "exit" | "block"}]
     block_sections = [{id, direction, start_km, end_km}] # optional: derived from signals
 
-Each list may equally be written as ``[[gradients]]`` tables.
+Each list may equally be written as ``[[gradients]]`` tables. A line file may be written in
+JSON too (a name ending in ``.json``; the same keys).
 """
 
 from __future__ import annotations
@@ -28,8 +30,7 @@ from __future__ import annotations
 import functools
 import os
 import threading
-import tomllib
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from importlib import resources
 from pathlib import Path
 from typing import Any, TypeVar
@@ -47,36 +48,27 @@ from railpilot.line.model import (
     Station,
 )
 from railpilot.link.messages import TravelDirection
-from railpilot.textfile import TOO_MANY_DIGITS, read_text
+from railpilot.schema.fields import FileTable
+from railpilot.schema.line_file import (
+    BlockSectionTable,
+    LineCurveTable,
+    LineFile,
+    LineGradientTable,
+    LineSpeedLimitTable,
+    LineStationTable,
+    SignalTable,
+)
+from railpilot.schema.reading import parse_text, read_document
+from railpilot.schema.validate import Loc, check, dotted
 from railpilot.units import MAX_KM_POST, km_post_to_m, kmh_to_mps
 
 T = TypeVar("T")
+M = TypeVar("M", bound=FileTable)
 
 #: Shipped lines: name -> file in railpilot/line/data/.
 SHIPPED_LINES: dict[str, str] = {"heavy-haul": "heavy_haul.toml", "metro": "metro.toml"}
 
-TOP_KEYS = (
-    "name",
-    "description",
-    "start_km",
-    "end_km",
-    "start_elevation_m",
-    "categories",
-    "stations",
-    "gradients",
-    "curves",
-    "speed_limits",
-    "signals",
-    "block_sections",
-)
-STATION_KEYS = ("id", "name", "km", "loop_length_m", "stop_up_km", "stop_down_km")
-GRADIENT_KEYS = ("start_km", "end_km", "permille")
-CURVE_KEYS = ("start_km", "end_km", "radius_m")
-LIMIT_KEYS = ("category", "start_km", "end_km", "limit_kmh", "direction")
-SIGNAL_KEYS = ("id", "km", "direction", "kind")
-BLOCK_KEYS = ("id", "direction", "start_km", "end_km")
-
-_DIRECTIONS: dict[str, TravelDirection] = {"up": UP, "down": DOWN}
+_DIRECTIONS: dict[str, TravelDirection | None] = {"up": UP, "down": DOWN, "both": None}
 
 
 def _km_text(value: Any) -> str | None:
@@ -88,195 +80,118 @@ def _km_text(value: Any) -> str | None:
     return None
 
 
-class _Entry:
-    """One TOML table being read: its label for errors, and typed getters."""
-
-    def __init__(self, data: Any, label: str, allowed: tuple[str, ...]) -> None:
-        if not isinstance(data, Mapping):
-            raise LineError(label, data, f"a table with keys {', '.join(allowed)}")
-        self.data = data
-        self.label = label
-        self.allowed = allowed
-
-    def check_keys(self) -> None:
-        """Reject a key the format does not know, listing the ones it does."""
-        allowed = self.allowed
-        for key in self.data:
-            if key not in allowed:
-                raise LineError(
-                    self.key(key),
-                    self.data[key],
-                    f"a known key instead of '{key}' (allowed here: {', '.join(allowed)})",
-                )
-
-    def key(self, key: str) -> str:
-        """The dotted name of ``key`` in this table, for errors."""
-        return f"{self.label}.{key}" if self.label else key
-
-    def number(self, key: str, default: float | None = None) -> float:
-        if key not in self.data:
-            if default is None:
-                raise LineError(self.key(key), None, "a number (the key is required)")
-            return default
-        value = self.data[key]
-        if not is_finite_number(value):  # nan, inf, and an int no float holds (10**400)
-            raise LineError(self.key(key), value, "a finite number")
-        return float(value)
-
-    def km_post(self, key: str, default: float | None = None) -> float:
-        """A km post [km] within MAX_KM_POST either way, the bound of scenario files too.
-        The model then checks it lies on the line; this bound comes first so that no
-        label or message writes out ``1e300`` km (300 digits)."""
-        value = self.number(key, default)
-        if not -MAX_KM_POST <= value <= MAX_KM_POST:
-            raise LineError(
-                self.key(key), value, f"a km post in [{-MAX_KM_POST:g}, {MAX_KM_POST:g}]"
-            )
-        return value
-
-    def integer(self, key: str) -> int:
-        value = self.data.get(key)
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise LineError(self.key(key), value, "an integer (the key is required)")
-        return value
-
-    def string(self, key: str, default: str | None = None) -> str:
-        if key not in self.data and default is not None:
-            return default
-        value = self.data.get(key)
-        if not isinstance(value, str):
-            raise LineError(self.key(key), value, "a string (the key is required)")
-        return value
-
-    def choice(self, key: str, choices: tuple[str, ...], default: str | None = None) -> str:
-        value = self.string(key, default)
-        if value not in choices:
-            raise LineError(self.key(key), value, f"one of {', '.join(choices)}")
-        return value
-
-    def span_label(self, kind: str, index: int, extra: str = "") -> str:
-        """``kind[index] (extra, km a-b)`` when both km posts read as km posts."""
-        start, end = _km_text(self.data.get("start_km")), _km_text(self.data.get("end_km"))
-        if start is not None and end is not None:
-            return f"{kind}[{index}] ({extra}km {start}-{end})"
-        return f"{kind}[{index}]" + (f" ({extra.rstrip(', ')})" if extra else "")
+def _span_label(kind: str, index: int, raw: Mapping[str, Any], extra: str = "") -> str:
+    """``kind[index] (extra, km a-b)`` when both km posts read as km posts."""
+    start, end = _km_text(raw.get("start_km")), _km_text(raw.get("end_km"))
+    if start is not None and end is not None:
+        return f"{kind}[{index}] ({extra}km {start}-{end})"
+    return f"{kind}[{index}]" + (f" ({extra.rstrip(', ')})" if extra else "")
 
 
-def _build(label: str, make: Callable[[], T]) -> T:
-    """Run an entry's constructor; prefix its LineError's field with the entry's label."""
-    try:
-        return make()
-    except LineError as exc:
-        if exc.field.startswith(label):  # a getter's error already names the entry
-            raise
-        raise LineError(f"{label}.{exc.field}", exc.value, exc.allowed) from exc
+def entry_label(kind: str, index: int, raw: Any) -> str:
+    """An entry of the line file as its errors name it, from the values the file gives:
+    ``gradients[3] (km 12.400-11.900)``, ``stations[0] (id 1 'S', km 12.500)``,
+    ``signals[2] ('U2', up, km 12.000)``, ``speed_limits[3] (b, both, km 10.000-13.000)``."""
+    plain = f"{kind}[{index}]"
+    if not isinstance(raw, Mapping):
+        return plain
+    if kind in ("stations", "signals"):
+        km = _km_text(raw.get("km"))
+        if km is None:
+            return plain
+        if kind == "stations":
+            return f"{plain} (id {raw.get('id')!r} {raw.get('name')!r}, km {km})"
+        return f"{plain} ({raw.get('id')!r}, {raw.get('direction')}, km {km})"
+    if kind == "speed_limits":
+        extra = f"{raw.get('category')}, {raw.get('direction', 'both')}, "
+        return _span_label(kind, index, raw, extra)
+    if kind == "block_sections":
+        return _span_label(kind, index, raw, f"{raw.get('id')!r}, {raw.get('direction')}, ")
+    if kind in ("gradients", "curves"):
+        return _span_label(kind, index, raw)
+    return plain
 
 
-def _tables(data: Mapping[str, Any], key: str) -> list[Any]:
-    value = data.get(key, [])
-    if not isinstance(value, list):
-        raise LineError(key, value, "a list of tables")
-    return value
+def _place(loc: Loc, data: Any) -> str:
+    """A key's place as the errors write it: an entry by its label."""
+    if len(loc) >= 2 and isinstance(loc[0], str) and isinstance(loc[1], int):
+        entries = data.get(loc[0]) if isinstance(data, Mapping) else None
+        raw = entries[loc[1]] if isinstance(entries, list) and loc[1] < len(entries) else None
+        label = entry_label(loc[0], loc[1], raw)
+        rest = dotted(loc[2:])
+        return f"{label}.{rest}" if rest else label
+    return dotted(loc)
 
 
-def _station(index: int, raw: Any) -> Station:
-    entry = _Entry(raw, f"stations[{index}]", STATION_KEYS)
-    km = _km_text(raw.get("km"))
-    if km is not None:
-        entry.label = f"stations[{index}] (id {raw.get('id')!r} {raw.get('name')!r}, km {km})"
-    entry.check_keys()
-    centre_km = entry.km_post("km")
-    return _build(
-        entry.label,
-        lambda: Station(
-            id=entry.integer("id"),
-            name=entry.string("name"),
-            centre_m=km_post_to_m(centre_km),
-            loop_length_m=entry.number("loop_length_m"),
-            stop_up_m=km_post_to_m(entry.km_post("stop_up_km", centre_km)),
-            stop_down_m=km_post_to_m(entry.km_post("stop_down_km", centre_km)),
-        ),
+def _station(t: LineStationTable) -> Station:
+    centre_km = t.km
+    return Station(
+        id=t.id,
+        name=t.name,
+        centre_m=km_post_to_m(centre_km),
+        loop_length_m=t.loop_length_m,
+        stop_up_m=km_post_to_m(t.stop_up_km if t.given("stop_up_km") else centre_km),
+        stop_down_m=km_post_to_m(t.stop_down_km if t.given("stop_down_km") else centre_km),
     )
 
 
-def _gradient(index: int, raw: Any) -> Gradient:
-    entry = _Entry(raw, f"gradients[{index}]", GRADIENT_KEYS)
-    entry.label = entry.span_label("gradients", index)
-    entry.check_keys()
-    return _build(
-        entry.label,
-        lambda: Gradient(
-            km_post_to_m(entry.km_post("start_km")),
-            km_post_to_m(entry.km_post("end_km")),
-            entry.number("permille"),
-        ),
+def _gradient(t: LineGradientTable) -> Gradient:
+    return Gradient(km_post_to_m(t.start_km), km_post_to_m(t.end_km), t.permille)
+
+
+def _curve(t: LineCurveTable) -> Curve:
+    return Curve(km_post_to_m(t.start_km), km_post_to_m(t.end_km), t.radius_m)
+
+
+def _speed_limit(t: LineSpeedLimitTable) -> SpeedLimit:
+    return SpeedLimit(
+        category=t.category,
+        start_m=km_post_to_m(t.start_km),
+        end_m=km_post_to_m(t.end_km),
+        limit_mps=kmh_to_mps(t.limit_kmh),
+        direction=_DIRECTIONS[t.direction],
     )
 
 
-def _curve(index: int, raw: Any) -> Curve:
-    entry = _Entry(raw, f"curves[{index}]", CURVE_KEYS)
-    entry.label = entry.span_label("curves", index)
-    entry.check_keys()
-    return _build(
-        entry.label,
-        lambda: Curve(
-            km_post_to_m(entry.km_post("start_km")),
-            km_post_to_m(entry.km_post("end_km")),
-            entry.number("radius_m"),
-        ),
+def _signal(t: SignalTable) -> Signal:
+    direction = _DIRECTIONS[t.direction]
+    assert direction is not None
+    return Signal(id=t.id, position_m=km_post_to_m(t.km), direction=direction, kind=t.kind)
+
+
+def _block_section(t: BlockSectionTable) -> BlockSection:
+    direction = _DIRECTIONS[t.direction]
+    assert direction is not None
+    return BlockSection(
+        id=t.id,
+        direction=direction,
+        start_m=km_post_to_m(t.start_km),
+        end_m=km_post_to_m(t.end_km),
     )
 
 
-def _speed_limit(index: int, raw: Any) -> SpeedLimit:
-    entry = _Entry(raw, f"speed_limits[{index}]", LIMIT_KEYS)
-    extra = f"{raw.get('category')}, {raw.get('direction', 'both')}, "
-    entry.label = entry.span_label("speed_limits", index, extra)
-    entry.check_keys()
-    direction = entry.choice("direction", ("both", "up", "down"), "both")
-    return _build(
-        entry.label,
-        lambda: SpeedLimit(
-            category=entry.string("category"),
-            start_m=km_post_to_m(entry.km_post("start_km")),
-            end_m=km_post_to_m(entry.km_post("end_km")),
-            limit_mps=kmh_to_mps(entry.number("limit_kmh")),
-            direction=_DIRECTIONS.get(direction),
-        ),
-    )
+def _entries(
+    data: Mapping[str, Any], kind: str, tables: Sequence[M], make: Callable[[M], T]
+) -> tuple[T, ...]:
+    """The entries of list ``kind``, each built from its checked table; the error of an
+    entry's own rule is named by the entry's label."""
+    out = []
+    for i, table in enumerate(tables):
+        try:
+            out.append(make(table))
+        except LineError as exc:
+            label = entry_label(kind, i, data[kind][i])
+            raise LineError(f"{label}.{exc.field}", exc.value, exc.allowed) from exc
+    return tuple(out)
 
 
-def _signal(index: int, raw: Any) -> Signal:
-    entry = _Entry(raw, f"signals[{index}]", SIGNAL_KEYS)
-    km = _km_text(raw.get("km"))
-    if km is not None:
-        entry.label = f"signals[{index}] ({raw.get('id')!r}, {raw.get('direction')}, km {km})"
-    entry.check_keys()
-    return _build(
-        entry.label,
-        lambda: Signal(
-            id=entry.string("id"),
-            position_m=km_post_to_m(entry.km_post("km")),
-            direction=_DIRECTIONS[entry.choice("direction", ("up", "down"))],
-            kind=entry.choice("kind", ("home", "exit", "block")),
-        ),
-    )
+def _in_source(source: str | None) -> Callable[[str, Any, str], LineError]:
+    """The error of a line file named ``source`` (None: of a mapping of no file)."""
 
+    def error(field: str, value: Any, allowed: str) -> LineError:
+        return LineError(field, value, allowed, source=source)
 
-def _block_section(index: int, raw: Any) -> BlockSection:
-    entry = _Entry(raw, f"block_sections[{index}]", BLOCK_KEYS)
-    entry.label = entry.span_label(
-        "block_sections", index, f"{raw.get('id')!r}, {raw.get('direction')}, "
-    )
-    entry.check_keys()
-    return _build(
-        entry.label,
-        lambda: BlockSection(
-            id=entry.string("id"),
-            direction=_DIRECTIONS[entry.choice("direction", ("up", "down"))],
-            start_m=km_post_to_m(entry.km_post("start_km")),
-            end_m=km_post_to_m(entry.km_post("end_km")),
-        ),
-    )
+    return error
 
 
 def line_from_mapping(data: Mapping[str, Any], source: str | None = None) -> RailLine:
@@ -288,30 +203,21 @@ def line_from_mapping(data: Mapping[str, Any], source: str | None = None) -> Rai
         Naming the offending entry and key, the value and what is allowed; prefixed by
         ``source`` when given.
     """
+    top = check(LineFile, data, _in_source(source), name=_place)
     try:
-        top = _Entry(data, "", TOP_KEYS)
-        top.check_keys()
-        categories = data.get("categories")
-        if not isinstance(categories, list) or not categories:
-            raise LineError("categories", categories, "a non-empty list of category names")
-        description = top.string("description", "")
         return RailLine(
-            name=top.string("name"),
-            start_m=km_post_to_m(top.number("start_km", 0.0)),
-            end_m=km_post_to_m(top.number("end_km")),
-            start_elevation_m=top.number("start_elevation_m", 0.0),
-            description=description,
-            categories=tuple(categories),
-            stations=tuple(_station(i, raw) for i, raw in enumerate(_tables(data, "stations"))),
-            gradients=tuple(_gradient(i, raw) for i, raw in enumerate(_tables(data, "gradients"))),
-            curves=tuple(_curve(i, raw) for i, raw in enumerate(_tables(data, "curves"))),
-            speed_limits=tuple(
-                _speed_limit(i, raw) for i, raw in enumerate(_tables(data, "speed_limits"))
-            ),
-            signals=tuple(_signal(i, raw) for i, raw in enumerate(_tables(data, "signals"))),
-            block_sections=tuple(
-                _block_section(i, raw) for i, raw in enumerate(_tables(data, "block_sections"))
-            ),
+            name=top.name,
+            start_m=km_post_to_m(top.start_km),
+            end_m=km_post_to_m(top.end_km),
+            start_elevation_m=top.start_elevation_m,
+            description=top.description,
+            categories=tuple(top.categories),
+            stations=_entries(data, "stations", top.stations, _station),
+            gradients=_entries(data, "gradients", top.gradients, _gradient),
+            curves=_entries(data, "curves", top.curves, _curve),
+            speed_limits=_entries(data, "speed_limits", top.speed_limits, _speed_limit),
+            signals=_entries(data, "signals", top.signals, _signal),
+            block_sections=_entries(data, "block_sections", top.block_sections, _block_section),
         )
     except LineError as exc:
         if source is None or exc.source is not None:
@@ -321,19 +227,16 @@ def line_from_mapping(data: Mapping[str, Any], source: str | None = None) -> Rai
 
 def parse_line(text: str, source: str = "<string>") -> RailLine:
     """Parse the TOML ``text`` of a line file; errors are prefixed by ``source``."""
-    try:
-        data = tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise LineError("LINE", source, f"valid TOML ({exc})", source=source) from exc
-    except ValueError:  # tomllib's int() of a literal past Python's digit limit
-        raise LineError("LINE", source, f"valid TOML ({TOO_MANY_DIGITS})", source=source) from None
-    return line_from_mapping(data, source=source)
+    return line_from_mapping(parse_text(text, source, "LINE", _in_source(source)), source=source)
 
 
 def read_line(path: str | os.PathLike[str]) -> RailLine:
-    """Read the line file at ``path``."""
+    """Read the line file at ``path`` (TOML, or JSON if its name ends in ``.json``)."""
     file = Path(path)
-    return parse_line(read_text(file, "LINE", "line TOML file", LineError), source=str(file))
+    data = read_document(
+        file, "LINE", "line TOML file", LineError, parse_error=_in_source(str(file))
+    )
+    return line_from_mapping(data, source=str(file))
 
 
 def load_line(name_or_path: str | os.PathLike[str]) -> RailLine:

@@ -44,8 +44,7 @@ import numpy.typing as npt
 from railpilot.errors import LineError, is_finite_number
 from railpilot.link.messages import TravelDirection
 from railpilot.units import m_to_km_post, mps_to_kmh
-from railpilot.vehicle.line import Line, Segment
-from railpilot.vehicle.line import Station as VehicleStation
+from railpilot.vehicle.line import Line, Segment, StopPoint
 
 FloatArray = npt.NDArray[np.float64]
 
@@ -1039,7 +1038,7 @@ class RailLine:
         curves = to_train([(c.start_m, c.end_m, c.radius_m) for c in self.curves])
         limits = to_train(pairs(*self.static_limit(category, d)))
         stations = tuple(
-            VehicleStation(s.name, float(self.distance_along(s.stop_m(d), d)))
+            StopPoint(s.name, float(self.distance_along(s.stop_m(d), d)))
             for s in (self.stations if d == UP else self.stations[::-1])
         )
         return Line(gradients=gradients, curves=curves, speed_limits=limits, stations=stations)

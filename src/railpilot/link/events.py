@@ -13,6 +13,7 @@ Three families:
 from __future__ import annotations
 
 from dataclasses import dataclass
+from enum import IntEnum
 from typing import ClassVar
 
 from .checks import Check
@@ -315,6 +316,15 @@ class DispatchCommandReceived(Event):
     command: DispatchCommand
 
 
+@dataclass(frozen=True, slots=True)
+class DeliveryReceived(Event):
+    """A message the ground keeps for the train (``Message.KIND``) and that has no event
+    of its own here (dispatch commands and target points do): once per key, however often
+    it is resent."""
+
+    message: Message
+
+
 # ground side -------------------------------------------------------------------------------
 
 
@@ -365,3 +375,35 @@ class TargetPointAcknowledged(Event):
 class DispatchAcknowledged(Event):
     train_id: int
     command_number: int
+
+
+@dataclass(frozen=True, slots=True)
+class DeliveryAcknowledged(Event):
+    """The train acknowledged a kept message (``Message.KIND``) of a kind that has no event
+    of its own here (first acknowledgement only): ``ident`` is its key, ``result`` the
+    train's answer."""
+
+    train_id: int
+    kind: str
+    ident: int
+    result: IntEnum
+
+
+#: Every event that reports a train's answer to a delivery of the ground.
+ACKNOWLEDGEMENTS = (
+    TsrAcknowledged,
+    TsrCancelAcknowledged,
+    TsrRefusedByTrain,
+    DispatchAcknowledged,
+    TargetPointAcknowledged,
+    DeliveryAcknowledged,
+)
+
+
+def event_name(event: Event) -> str:
+    """What the ground's logs call an event: its class name (``TsrAcknowledged``), or, for
+    a :class:`DeliveryAcknowledged`, its kind's in the same form (a kind ``speed_advice``:
+    ``SpeedAdviceAcknowledged``)."""
+    if isinstance(event, DeliveryAcknowledged):
+        return "".join(part.capitalize() for part in event.kind.split("_")) + "Acknowledged"
+    return type(event).__name__

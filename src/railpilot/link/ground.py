@@ -5,7 +5,8 @@ Three state machines, each with ONE transition table in this file:
 * :data:`TRANSITIONS` - the connection/registration state of the train on this
   connection;
 * :data:`TSR_TRANSITIONS` - delivery of one TSR session (set, acknowledge, cancel);
-* :data:`DELIVERY_TRANSITIONS` - delivery of one dispatch command or target point.
+* :data:`DELIVERY_TRANSITIONS` - delivery of one kept message (``Message.KIND``: a
+  dispatch command, a target point ...), whatever its kind.
 
 What must survive reconnects (pending deliveries, replay-protection timestamps, the last
 running info) lives in a :class:`TrainRecord` per train, in a mapping the server owns and
@@ -23,7 +24,9 @@ from .config import GroundConfig
 from .endpoint import Endpoint, transition
 from .errors import LocalProtocolError, StateError
 from .events import (
+    DeliveryAcknowledged,
     DispatchAcknowledged,
+    Event,
     TargetPointAcknowledged,
     TrainDeregistered,
     TrainRegistered,
@@ -34,6 +37,8 @@ from .events import (
 from .frame import Frame
 from .keys import KeyStore
 from .messages import (
+    ANSWERS,
+    KEPT_KINDS,
     DeregisterRequest,
     DeregisterResponse,
     DispatchAck,
@@ -58,6 +63,7 @@ from .messages import (
     TsrSet,
     TsrSetAck,
     TsrSetResult,
+    key_of,
 )
 from .safety import HeldValue, PeerHistory, PeriodicSupervisor, SecureChannel
 
@@ -171,7 +177,7 @@ _TSR_SENDS_SET = (_T.PENDING_SET, _T.RECONFIRMING)
 _TSR_SENDS = (*_TSR_SENDS_SET, _T.PENDING_CANCEL)
 
 
-# --- dispatch command / target point delivery ---------------------------------------------
+# --- delivery of a kept message (dispatch command, target point ...) ----------------------
 
 
 class DeliveryState(Enum):
@@ -184,7 +190,7 @@ class DeliveryInput(Enum):
     REREGISTERED = "train registered again"
 
 
-#: Dispatch command / target point delivery: (state, input) -> next state.
+#: Delivery of a kept message: (state, input) -> next state.
 DELIVERY_TRANSITIONS: Mapping[tuple[DeliveryState, DeliveryInput], DeliveryState] = {
     (DeliveryState.PENDING, DeliveryInput.ACK): DeliveryState.ACKNOWLEDGED,
     (DeliveryState.PENDING, DeliveryInput.REREGISTERED): DeliveryState.PENDING,
@@ -202,7 +208,9 @@ class TsrDelivery:
 
 @dataclass(slots=True)
 class Delivery:
-    message: DispatchCommand | TargetPoint
+    """One kept message (``Message.KIND``) to one train and where its delivery stands."""
+
+    message: Message
     state: DeliveryState = DeliveryState.PENDING
     next_send_s: float = 0.0
 
@@ -221,28 +229,43 @@ class TrainRecord:
     registration: RegisterRequest | None = None
     history: PeerHistory = field(default_factory=PeerHistory)
     tsrs: dict[int, TsrDelivery] = field(default_factory=dict)
-    dispatch_commands: dict[int, Delivery] = field(default_factory=dict)
-    target_points: dict[int, Delivery] = field(default_factory=dict)
+    #: kind (``Message.KIND``) -> key -> delivery: every kept message the train was sent,
+    #: a book per kind of :data:`~railpilot.link.messages.KEPT_KINDS` (an empty one for a
+    #: kind not given), in that order.
+    books: dict[str, dict[int, Delivery]] = field(default_factory=dict)
     running_info: HeldValue = field(default_factory=HeldValue)
     #: Onboard clock minus ground clock from the last TIME_OFFSET_REPORT [s].
     time_offset_s: float | None = None
-    #: The target points and dispatch commands not yet acknowledged, by id: the part of
-    #: their books the resend scans look at. Why: the books keep every one ever sent (a
-    #: train is sent dozens of target points a day), an acknowledged one never changes
-    #: again, and the scans run on every frame. Kept by the methods below and by
-    #: ``GroundEndpoint``; built from the books a record is made with.
-    #: ``{"target_point": {id: delivery}, "dispatch_command": {...}}``.
+    #: The kept messages not yet acknowledged, by kind and key: the part of the books
+    #: the resend scans look at. Why: the books keep every one ever sent (a train is sent
+    #: dozens of target points a day), an acknowledged one never changes again, and the
+    #: scans run on every frame. Kept by the methods below and by ``GroundEndpoint``;
+    #: built from the books a record is made with. ``{"target_point": {id: delivery}, ...}``.
     unacknowledged: dict[str, dict[int, Delivery]] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
+        unknown = set(self.books) - set(KEPT_KINDS)
+        if unknown:
+            raise LocalProtocolError(
+                f"books {sorted(unknown)} are not kept kinds: expected {', '.join(KEPT_KINDS)}"
+            )
+        self.books = {kind: self.books.get(kind, {}) for kind in KEPT_KINDS}
         self.unacknowledged = {
             kind: {i: d for i, d in book.items() if d.state is DeliveryState.PENDING}
-            for kind, book in self.delivery_books()
+            for kind, book in self.books.items()
         }
 
+    @property
+    def target_points(self) -> dict[int, Delivery]:
+        return self.books["target_point"]
+
+    @property
+    def dispatch_commands(self) -> dict[int, Delivery]:
+        return self.books["dispatch_command"]
+
     def delivery_books(self) -> tuple[tuple[str, dict[int, Delivery]], ...]:
-        """``(kind, book)`` of the target points and the dispatch commands."""
-        return (("target_point", self.target_points), ("dispatch_command", self.dispatch_commands))
+        """``(kind, book)`` of every kept kind, in :data:`KEPT_KINDS` order."""
+        return tuple(self.books.items())
 
     # The server may call these for a train that is offline; the next connection of the
     # train delivers them after registration.
@@ -268,17 +291,28 @@ class TrainRecord:
         )
         delivery.next_send_s = 0.0
 
+    def add(self, message: Message) -> None:
+        """Queue a kept message: one of ``REPLACES`` kind replaces the one under its key
+        (a target point), of any other kind its key must not be used yet."""
+        kind = message.KIND
+        if kind not in self.books:
+            raise LocalProtocolError(
+                f"{type(message).__name__} is not kept: expected one of "
+                f"{', '.join(cls.__name__ for cls in KEPT_KINDS.values())}"
+            )
+        ident = key_of(message)
+        if not message.REPLACES and ident in self.books[kind]:
+            raise LocalProtocolError(f"{kind.replace('_', ' ')} {ident} already queued")
+        delivery = self.books[kind][ident] = Delivery(message)
+        self.unacknowledged[kind][ident] = delivery
+
     def add_target_point(self, target: TargetPoint) -> None:
         """Queue a target point; a new one under the same id replaces the old."""
-        delivery = self.target_points[target.target_id] = Delivery(target)
-        self.unacknowledged["target_point"][target.target_id] = delivery
+        self.add(target)
 
     def add_dispatch_command(self, command: DispatchCommand) -> None:
         """Queue a dispatch command (command numbers are used once)."""
-        if command.command_number in self.dispatch_commands:
-            raise LocalProtocolError(f"dispatch command {command.command_number} already queued")
-        delivery = self.dispatch_commands[command.command_number] = Delivery(command)
-        self.unacknowledged["dispatch_command"][command.command_number] = delivery
+        self.add(command)
 
 
 _ENDPOINT_SERIALS = itertools.count(1)
@@ -381,7 +415,7 @@ class GroundEndpoint(Endpoint):
         if not isinstance(message, StationStops | RunningTimes | TimeCheck):
             raise LocalProtocolError(
                 f"{type(message).__name__} is not sent with send(); use set_tsr(), "
-                "cancel_tsr(), send_target_point() or send_dispatch_command()"
+                "cancel_tsr() or deliver()"
             )
         self.state = transition(TRANSITIONS, self.state, _GI.SEND, remote=False)
         self._queue(message, now_s)
@@ -396,15 +430,19 @@ class GroundEndpoint(Endpoint):
         self._require_record().cancel_tsr(session)
         self._pump(now_s)
 
+    def deliver(self, message: Message, now_s: float) -> None:
+        """Deliver a kept message (``Message.KIND``); resent until acknowledged, also
+        across reconnects (:meth:`TrainRecord.add`)."""
+        self._require_record().add(message)
+        self._pump(now_s)
+
     def send_target_point(self, target: TargetPoint, now_s: float) -> None:
         """Deliver a target point (a new one under the same id replaces the old)."""
-        self._require_record().add_target_point(target)
-        self._pump(now_s)
+        self.deliver(target, now_s)
 
     def send_dispatch_command(self, command: DispatchCommand, now_s: float) -> None:
         """Deliver a dispatch command; resent until acknowledged."""
-        self._require_record().add_dispatch_command(command)
-        self._pump(now_s)
+        self.deliver(command, now_s)
 
     def tsr_state(self, session: int) -> TsrState | None:
         record = self.record
@@ -515,7 +553,7 @@ class GroundEndpoint(Endpoint):
                 record.registered_on = None
                 self._events.append(TrainDeregistered(record.train_id, message.reason))
         else:
-            is_ack = isinstance(message, TsrSetAck | TsrCancelAck | DispatchAck | TargetPointAck)
+            is_ack = type(message) in ANSWERS
             trigger = _GI.RECV_ACK if is_ack else _GI.RECV_DATA
             self.state = transition(TRANSITIONS, self.state, trigger, remote=True)
             self._on_data(frame, message, now_s)
@@ -561,7 +599,7 @@ class GroundEndpoint(Endpoint):
             self._deliver_data(frame, message)
         elif isinstance(message, TsrSetAck | TsrCancelAck):
             self._on_tsr_ack(record, message)
-        elif isinstance(message, DispatchAck | TargetPointAck):
+        elif type(message) in ANSWERS:
             self._on_delivery_ack(record, message)
         elif isinstance(message, TimeOffsetReport):
             record.time_offset_s = message.offset_s
@@ -596,13 +634,9 @@ class GroundEndpoint(Endpoint):
             assert isinstance(ack, TsrCancelAck)
             self._events.append(TsrCancelAcknowledged(record.train_id, ack.session, ack.result))
 
-    def _on_delivery_ack(self, record: TrainRecord, ack: DispatchAck | TargetPointAck) -> None:
-        if isinstance(ack, DispatchAck):
-            kind, ident = "dispatch_command", ack.command_number
-            item = record.dispatch_commands.get(ident)
-        else:
-            kind, ident = "target_point", ack.target_id
-            item = record.target_points.get(ident)
+    def _on_delivery_ack(self, record: TrainRecord, ack: Message) -> None:
+        kind, ident = ANSWERS[type(ack)].KIND, key_of(ack)
+        item = record.books[kind].get(ident)
         if item is None:
             raise StateError(f"acknowledgement for {type(ack).__name__} {ident} never sent")
         before = item.state
@@ -610,7 +644,15 @@ class GroundEndpoint(Endpoint):
         if before is item.state:
             return
         record.unacknowledged[kind].pop(ident, None)
-        if isinstance(ack, DispatchAck):
-            self._events.append(DispatchAcknowledged(record.train_id, ack.command_number))
-        else:
-            self._events.append(TargetPointAcknowledged(record.train_id, ack.target_id, ack.result))
+        self._events.append(_acknowledged(record.train_id, kind, ack))
+
+
+def _acknowledged(train_id: int, kind: str, ack: Message) -> Event:
+    """The event of a kept message's first acknowledgement: the kind's own event where it
+    has one, else a :class:`DeliveryAcknowledged`."""
+    if isinstance(ack, DispatchAck):
+        return DispatchAcknowledged(train_id, ack.command_number)
+    if isinstance(ack, TargetPointAck):
+        return TargetPointAcknowledged(train_id, ack.target_id, ack.result)
+    # every acknowledgement carries the train's answer; the Message base declares no field
+    return DeliveryAcknowledged(train_id, kind, key_of(ack), getattr(ack, "result"))  # noqa: B009

@@ -20,22 +20,21 @@ No method, repr or error message of this module ever shows key bytes.
 
 from __future__ import annotations
 
+import hashlib
 import os
 import stat
 import tomllib
-from collections.abc import Mapping
+from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any
 
+from pydantic import ValidationError
+
 from railpilot.errors import shown
+from railpilot.schema.keys import MAX_KEY_BYTES, MAX_KEY_ID, MAX_TRAIN_ID, MIN_KEY_BYTES, KeyFile
 from railpilot.textfile import TOO_MANY_DIGITS
 
 from .errors import KeyFileError, LinkConfigError
-
-MIN_KEY_BYTES = 16
-MAX_KEY_BYTES = 64
-MAX_KEY_ID = 0xFFFF
-MAX_TRAIN_ID = 0xFFFF_FFFF
 
 
 class KeyStore:
@@ -101,49 +100,61 @@ class KeyStore:
 
 
 def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") -> KeyStore:
-    """Build a :class:`KeyStore` from a parsed key file (see the module docstring)."""
+    """Build a :class:`KeyStore` from a parsed key file (see the module docstring; the
+    format: railpilot.schema.keys)."""
+    try:
+        table = KeyFile.model_validate(document)
+    except ValidationError as exc:
+        raise KeyFileError(_fault(exc.errors(include_url=False)[0], source)) from None
     store = KeyStore()
-    trains = document.get("train")
-    if not isinstance(trains, list) or not trains:
-        raise KeyFileError(f"{source}: expected at least one [[train]] table")
-    for index, entry in enumerate(trains):
+    for index, entry in enumerate(table.train):
         where = f"{source}: train[{index}]"
-        if not isinstance(entry, dict):
-            raise KeyFileError(f"{where}: expected a table")
-        train_id = entry.get("id")
-        if type(train_id) is not int:
-            raise KeyFileError(f"{where}: id must be an integer train id, got {_shown(train_id)}")
-        keys = entry.get("keys")
-        if not isinstance(keys, dict) or not keys:
-            raise KeyFileError(f"{where}: expected a non-empty [train.keys] table")
-        for key_id_text, hex_key in keys.items():
+        for key_id_text, hex_key in entry.keys.items():
             try:
                 key_id = int(key_id_text)
-                key = bytes.fromhex(hex_key) if isinstance(hex_key, str) else None
+                key = bytes.fromhex(hex_key)
             except ValueError:
                 raise KeyFileError(
                     f"{where}: key {key_id_text!r} needs an integer id and a hex string value"
                 ) from None
-            if key is None:
-                raise KeyFileError(f"{where}: key {key_id_text!r} must be a hex string")
             try:
-                store.add_key(train_id, key_id, key)
+                store.add_key(entry.id, key_id, key)
             except LinkConfigError as exc:
                 raise KeyFileError(
                     f"{where}: {exc.field} = {shown(exc.value)}, expected {exc.allowed}"
                 ) from None
-        active = entry.get("active_key", min(int(k) for k in keys))
-        if type(active) is not int:  # not a bool, a float (inf, 1.0) or a string
-            raise KeyFileError(
-                f"{where}: active_key must be an integer key id, got {_shown(active)}"
-            )
+        active = entry.active_key if entry.given("active_key") else min(map(int, entry.keys))
         try:
-            store.set_active(train_id, active)
+            store.set_active(entry.id, active)
         except LinkConfigError:
             raise KeyFileError(
                 f"{where}: active_key {shown(active)} is not one of its key ids"
             ) from None
     return store
+
+
+def _fault(fault: Any, source: str) -> str:
+    """A key file's first fault, as its error says it: the entry and the key, and the
+    value only where it cannot be a key (:func:`_shown`)."""
+    loc = fault["loc"]
+    if len(loc) < 2:  # no [[train]] list, or an empty one
+        return f"{source}: expected at least one [[train]] table"
+    where = f"{source}: train[{loc[1]}]"
+    value = None if fault["type"] == "missing" else fault["input"]
+    if len(loc) == 2:
+        return f"{where}: expected a table"
+    if loc[2] == "id":
+        return f"{where}: id must be an integer train id, got {_shown(value)}"
+    if loc[2] == "active_key":  # not a bool, a float (inf, 1.0) or a string
+        return f"{where}: active_key must be an integer key id, got {_shown(value)}"
+    if len(loc) == 3:
+        return f"{where}: expected a non-empty [train.keys] table"
+    key_id_text = loc[3]
+    try:
+        int(key_id_text)
+    except ValueError:
+        return f"{where}: key {key_id_text!r} needs an integer id and a hex string value"
+    return f"{where}: key {key_id_text!r} must be a hex string"
 
 
 def _shown(value: object) -> str:
@@ -182,3 +193,19 @@ def load_key_file(path: str | os.PathLike[str]) -> KeyStore:
     except ValueError:  # tomllib's int() of a literal past Python's digit limit
         raise KeyFileError(f"key file {file} is not valid TOML ({TOO_MANY_DIGITS})") from None
     return parse_key_table(document, str(file))
+
+
+def seeded_test_keys(seed: int, train_ids: Iterable[int]) -> KeyStore:
+    """Per-train keys derived from ``seed``, for runs that must authenticate but have no key
+    file: the co-simulation's line runs, the load test, tests and benchmarks.
+
+    Anyone who knows the seed knows the keys: they are test keys, kept in memory, never
+    written and never for service. The same seed and ids give the same keys (key id 1), so
+    a seeded run is repeated to the bit.
+    """
+    keys = KeyStore()
+    for train in train_ids:
+        keys.add_key(
+            train, 1, hashlib.sha256(f"railpilot-loadtest:{seed}:{train}".encode()).digest()
+        )
+    return keys

@@ -12,7 +12,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from enum import IntEnum
-from typing import Any, ClassVar
+from typing import Any, ClassVar, cast
 
 from .errors import MessageFieldError
 
@@ -173,12 +173,31 @@ def _check_ident(obj: Any, name: str) -> None:
 
 @dataclass(frozen=True, slots=True)
 class Message:
-    """Base of every message; ``TYPE`` is its wire code and ``DIRECTION`` who sends it."""
+    """Base of every message; ``TYPE`` is its wire code and ``DIRECTION`` who sends it.
+
+    A ground-to-train message the train must acknowledge names its acknowledgement in
+    ``ACK`` and the field both carry in ``KEY``: the ground resends it until the answer
+    comes. One that the ground also keeps per train (in its records and its store, so it
+    is resent after a reconnect or a restart of the ground) names its kind in ``KIND``;
+    the link's endpoints, the ground's journal and its store derive everything they do
+    with such a message from these four attributes (:data:`KEPT_KINDS`). Its
+    acknowledgement's other fields must have defaults: they are the train's answer
+    (:func:`acknowledgement`).
+    """
 
     TYPE: ClassVar[MessageType]
     DIRECTION: ClassVar[LinkDirection]
     #: Sent every cycle and supervised with a timeout on the receiver (paper 1.2 (2)).
     PERIODIC: ClassVar[bool] = False
+    #: The acknowledgement that answers this message (None: not acknowledged).
+    ACK: ClassVar[type[Message] | None] = None
+    #: The field that identifies one delivery, in this message and in its ``ACK``.
+    KEY: ClassVar[str] = ""
+    #: The name under which the ground keeps it per train ("": not kept that way).
+    KIND: ClassVar[str] = ""
+    #: Kept: a new message under a used ``KEY`` replaces the old one (else a key names
+    #: one message for good, and another message under it is refused).
+    REPLACES: ClassVar[bool] = False
 
 
 @dataclass(frozen=True, slots=True)
@@ -379,11 +398,27 @@ class PlannedCurve(Message):
 
 
 @dataclass(frozen=True, slots=True)
+class TargetPointAck(Message):
+    TYPE = MessageType.TARGET_POINT_ACK
+    DIRECTION = LinkDirection.UPLINK
+    target_id: int
+    result: TargetPointResult = TargetPointResult.ACCEPTED
+
+    def __post_init__(self) -> None:
+        _check_uint(self, "target_id", 0, U32_MAX)
+        _check_enum(self, "result", TargetPointResult)
+
+
+@dataclass(frozen=True, slots=True)
 class TargetPoint(Message):
     """Position of a red signal the train must stop before (paper 001, section 2.4)."""
 
     TYPE = MessageType.TARGET_POINT
     DIRECTION = LinkDirection.DOWNLINK
+    ACK = TargetPointAck
+    KEY = "target_id"
+    KIND = "target_point"
+    REPLACES = True
     target_id: int
     position_m: float
     reason: TargetReason
@@ -395,15 +430,15 @@ class TargetPoint(Message):
 
 
 @dataclass(frozen=True, slots=True)
-class TargetPointAck(Message):
-    TYPE = MessageType.TARGET_POINT_ACK
+class TsrSetAck(Message):
+    TYPE = MessageType.TSR_SET_ACK
     DIRECTION = LinkDirection.UPLINK
-    target_id: int
-    result: TargetPointResult
+    session: int
+    result: TsrSetResult
 
     def __post_init__(self) -> None:
-        _check_uint(self, "target_id", 0, U32_MAX)
-        _check_enum(self, "result", TargetPointResult)
+        _check_uint(self, "session", 1, U32_MAX)
+        _check_enum(self, "result", TsrSetResult)
 
 
 @dataclass(frozen=True, slots=True)
@@ -412,6 +447,8 @@ class TsrSet(Message):
 
     TYPE = MessageType.TSR_SET
     DIRECTION = LinkDirection.DOWNLINK
+    ACK = TsrSetAck
+    KEY = "session"
     session: int
     start_m: float  # km post where the restriction starts [m]
     end_m: float  # km post where it ends [m]
@@ -429,28 +466,6 @@ class TsrSet(Message):
 
 
 @dataclass(frozen=True, slots=True)
-class TsrSetAck(Message):
-    TYPE = MessageType.TSR_SET_ACK
-    DIRECTION = LinkDirection.UPLINK
-    session: int
-    result: TsrSetResult
-
-    def __post_init__(self) -> None:
-        _check_uint(self, "session", 1, U32_MAX)
-        _check_enum(self, "result", TsrSetResult)
-
-
-@dataclass(frozen=True, slots=True)
-class TsrCancel(Message):
-    TYPE = MessageType.TSR_CANCEL
-    DIRECTION = LinkDirection.DOWNLINK
-    session: int
-
-    def __post_init__(self) -> None:
-        _check_uint(self, "session", 1, U32_MAX)
-
-
-@dataclass(frozen=True, slots=True)
 class TsrCancelAck(Message):
     TYPE = MessageType.TSR_CANCEL_ACK
     DIRECTION = LinkDirection.UPLINK
@@ -463,21 +478,15 @@ class TsrCancelAck(Message):
 
 
 @dataclass(frozen=True, slots=True)
-class DispatchCommand(Message):
-    TYPE = MessageType.DISPATCH_COMMAND
+class TsrCancel(Message):
+    TYPE = MessageType.TSR_CANCEL
     DIRECTION = LinkDirection.DOWNLINK
-    command_number: int
-    text: str
+    ACK = TsrCancelAck
+    KEY = "session"
+    session: int
 
     def __post_init__(self) -> None:
-        _check_uint(self, "command_number", 1, U32_MAX)
-        if not isinstance(self.text, str) or (
-            len(self.text.encode("utf-8", "surrogatepass")) > MAX_DISPATCH_TEXT_BYTES
-            or any(0xD800 <= ord(ch) <= 0xDFFF for ch in self.text)
-        ):
-            raise _fail(
-                self, "text", self.text, f"a str of <= {MAX_DISPATCH_TEXT_BYTES} bytes of UTF-8"
-            )
+        _check_uint(self, "session", 1, U32_MAX)
 
 
 @dataclass(frozen=True, slots=True)
@@ -490,6 +499,27 @@ class DispatchAck(Message):
     def __post_init__(self) -> None:
         _check_uint(self, "command_number", 1, U32_MAX)
         _check_enum(self, "result", DispatchResult)
+
+
+@dataclass(frozen=True, slots=True)
+class DispatchCommand(Message):
+    TYPE = MessageType.DISPATCH_COMMAND
+    DIRECTION = LinkDirection.DOWNLINK
+    ACK = DispatchAck
+    KEY = "command_number"
+    KIND = "dispatch_command"
+    command_number: int
+    text: str
+
+    def __post_init__(self) -> None:
+        _check_uint(self, "command_number", 1, U32_MAX)
+        if not isinstance(self.text, str) or (
+            len(self.text.encode("utf-8", "surrogatepass")) > MAX_DISPATCH_TEXT_BYTES
+            or any(0xD800 <= ord(ch) <= 0xDFFF for ch in self.text)
+        ):
+            raise _fail(
+                self, "text", self.text, f"a str of <= {MAX_DISPATCH_TEXT_BYTES} bytes of UTF-8"
+            )
 
 
 @dataclass(frozen=True, slots=True)
@@ -526,3 +556,73 @@ MESSAGE_CLASSES: dict[MessageType, type[Message]] = {
         Heartbeat,
     )
 }
+
+
+#: Acknowledgement class -> the message class it answers.
+ANSWERS: dict[type[Message], type[Message]] = {
+    cls.ACK: cls for cls in MESSAGE_CLASSES.values() if cls.ACK is not None
+}
+
+#: Kind -> message class of every message the ground keeps per train and resends until
+#: it is acknowledged (TSRs excepted: their set and cancel have a machine of their own),
+#: in wire-code order: the order the ground's records, journal and store go through them.
+KEPT_KINDS: dict[str, type[Message]] = {
+    cls.KIND: cls for cls in MESSAGE_CLASSES.values() if cls.KIND
+}
+
+
+def key_of(message: Message) -> int:
+    """The ``KEY`` field's value of an acknowledged message or of its acknowledgement."""
+    cls = ANSWERS.get(type(message), type(message))
+    return cast(int, getattr(message, cls.KEY))
+
+
+def acknowledgement(message: Message) -> Message:
+    """The train's acknowledgement of ``message``: its ``ACK`` with the same key and the
+    other fields at their defaults (the positive answer)."""
+    ack = type(message).ACK
+    if ack is None:
+        raise TypeError(f"{type(message).__name__} is not acknowledged")
+    return cast(Any, ack)(**{type(message).KEY: key_of(message)})
+
+
+__all__ = [
+    "ANSWERS",
+    "KEPT_KINDS",
+    "MESSAGE_CLASSES",
+    "DeregisterReason",
+    "DeregisterRequest",
+    "DeregisterResponse",
+    "DeregisterResult",
+    "DispatchAck",
+    "DispatchCommand",
+    "DispatchResult",
+    "Heartbeat",
+    "LinkDirection",
+    "Message",
+    "MessageType",
+    "PlannedCurve",
+    "RegisterRequest",
+    "RegisterResponse",
+    "RegisterResult",
+    "RunningInfo",
+    "RunningTime",
+    "RunningTimes",
+    "StationStop",
+    "StationStops",
+    "TargetPoint",
+    "TargetPointAck",
+    "TargetPointResult",
+    "TargetReason",
+    "TimeCheck",
+    "TimeOffsetReport",
+    "TravelDirection",
+    "TsrCancel",
+    "TsrCancelAck",
+    "TsrCancelResult",
+    "TsrSet",
+    "TsrSetAck",
+    "TsrSetResult",
+    "acknowledgement",
+    "key_of",
+]

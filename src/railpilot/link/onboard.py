@@ -18,6 +18,7 @@ from .endpoint import Endpoint, transition
 from .errors import LinkConfigError, LocalProtocolError
 from .events import (
     AppliedTsr,
+    DeliveryReceived,
     Deregistered,
     DispatchCommandReceived,
     Registered,
@@ -32,10 +33,10 @@ from .events import (
 from .frame import Frame
 from .keys import KeyStore
 from .messages import (
+    MESSAGE_CLASSES,
     DeregisterReason,
     DeregisterRequest,
     DeregisterResponse,
-    DispatchAck,
     DispatchCommand,
     Heartbeat,
     LinkDirection,
@@ -60,6 +61,8 @@ from .messages import (
     TsrSet,
     TsrSetAck,
     TsrSetResult,
+    acknowledgement,
+    key_of,
 )
 from .safety import PeerHistory, PeriodicSupervisor, SecureChannel
 
@@ -112,14 +115,11 @@ TRANSITIONS: Mapping[tuple[OnboardState, OnboardInput], OnboardState] = {
     **{(s, _I.CONNECTION_LOST): _S.DISCONNECTED for s in (*_CONNECTED, _S.FAILED)},
 }
 
-_DOWNLINK_DATA = (
-    MessageType.TIME_CHECK,
-    MessageType.STATION_STOPS,
-    MessageType.RUNNING_TIMES,
-    MessageType.TARGET_POINT,
-    MessageType.TSR_SET,
-    MessageType.TSR_CANCEL,
-    MessageType.DISPATCH_COMMAND,
+#: What the ground sends besides the answers to our requests (and heartbeats).
+_DOWNLINK_DATA = frozenset(
+    cls.TYPE
+    for cls in MESSAGE_CLASSES.values()
+    if cls.DIRECTION is LinkDirection.DOWNLINK and cls not in (RegisterResponse, DeregisterResponse)
 )
 
 
@@ -170,7 +170,9 @@ class OnboardEndpoint(Endpoint):
         self._finished_tsrs: set[int] = set()  # cancelled or expired: never applied again
         #: Every target point received, by id; the newest id is the one in force.
         self.target_points: dict[int, TargetPoint] = {}
-        self._dispatch_seen: set[int] = set()
+        #: kind -> keys of the kept messages received (``Message.KIND``), target points
+        #: aside (``target_points``): each is reported once, acknowledged every time
+        self._kept_seen: dict[str, set[int]] = {}
         self.time_offset_s: float | None = None
 
     def _history(self, peer_id: int) -> PeerHistory:
@@ -380,11 +382,16 @@ class OnboardEndpoint(Endpoint):
                 # and acknowledged, and it changes nothing (protocol.md 8.4). Reported, it
                 # would put back a target the ground has moved or cleared since
             self._queue(TargetPointAck(message.target_id, TargetPointResult.ACCEPTED), now_s)
-        elif isinstance(message, DispatchCommand):
-            if message.command_number not in self._dispatch_seen:
-                self._dispatch_seen.add(message.command_number)
-                self._events.append(DispatchCommandReceived(message))
-            self._queue(DispatchAck(message.command_number), now_s)
+        elif message.KIND:
+            seen = self._kept_seen.setdefault(message.KIND, set())
+            if key_of(message) not in seen:
+                seen.add(key_of(message))
+                self._events.append(
+                    DispatchCommandReceived(message)
+                    if isinstance(message, DispatchCommand)
+                    else DeliveryReceived(message)
+                )
+            self._queue(acknowledgement(message), now_s)
         elif isinstance(message, TimeCheck):
             # whole us, so the offset sent is exactly onboard time - ground time (6.6)
             report = TimeOffsetReport.from_us(

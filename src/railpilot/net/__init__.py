@@ -9,8 +9,10 @@ passes its events on.
 * :mod:`~railpilot.net.server` - the ground front server (many trains at once);
 * :mod:`~railpilot.net.admin` - the server's local admin API (line-delimited JSON);
 * :mod:`~railpilot.net.client` - the onboard endpoint with a simulated trajectory;
-* :mod:`~railpilot.net.proxy` - a per-frame fault-injection proxy for threat tests;
-* :mod:`~railpilot.net.loadtest` - N trains against one server on loopback.
+* :mod:`~railpilot.net.proxy` - a per-frame fault-injection proxy for threat tests.
+
+The load test that drives them (N trains against one server) is a rig:
+:mod:`railpilot.rigs.loadtest`.
 
 Only loopback addresses are used by the tools and tests here.
 """

@@ -1,13 +1,14 @@
 """The ground dispatch application on the live server: :class:`DispatchHost`.
 
-A thin adapter (DESIGN habit 2) between a :class:`~railpilot.net.server.GroundServer` and a
-:class:`~railpilot.ground.dispatch.GroundDispatch`:
+A thin adapter (DESIGN habit 2) that gives a :class:`~railpilot.net.server.GroundServer`'s
+:class:`~railpilot.ground.host.GroundHost` a :class:`~railpilot.ground.dispatch.GroundDispatch`
+and drives it in wall-clock time:
 
-- every event of every connection goes to the core (``server.add_listener``);
+- every event of every connection goes to the core (the host's ``on_event``);
 - the core's clock ticks every :data:`TICK_S` (TSR expiry, target points from occupancy);
-- the commands the core returns are carried out through the server's delivery methods
-  (which commit to the store before any frame leaves), never from inside the server's own
-  event handling: a delivery re-enters the connection that is reporting the event;
+- the commands the core returns are carried out by the host (which commits to the store
+  before any frame leaves), never from inside the server's own event handling: a delivery
+  re-enters the connection that is reporting the event;
 - a dispatcher's request (admin port, HTTP, CLI: one schema, ground/operations.py) is
   parsed once, carried out by the core, and its deliveries sent in batches so a broadcast
   to a thousand trains does not hold up the receive path;
@@ -31,27 +32,11 @@ from collections.abc import Mapping
 from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
-from railpilot.ground.dispatch import (
-    CancelTsrOn,
-    Command,
-    DeliverTsr,
-    GroundDispatch,
-    Outcome,
-    SendRunningTimes,
-    SendTargetPoint,
-    command_trains,
-)
+from railpilot.ground.dispatch import Command, GroundDispatch, Outcome, command_trains
 from railpilot.ground.journal import declared_restrictions
 from railpilot.ground.occupancy import Occupancy
-from railpilot.ground.operations import (
-    Operation,
-    OperationError,
-    Status,
-    parse_operation,
-)
-from railpilot.ground.store import StoreError
+from railpilot.ground.operations import OperationError, Status, parse_operation
 from railpilot.line.model import RailLine
-from railpilot.link import Event
 
 from .logfmt import kv
 from .server import GroundServer
@@ -69,7 +54,9 @@ class DispatchHost:
     """The dispatch core on a live server (module docstring).
 
     ``clock``: the ground clock [s since the epoch], the server's own by default (its
-    ticks come every ``tick_s`` seconds of it).
+    ticks come every ``tick_s`` seconds of it). ``dispatch``: the core, if it was built
+    elsewhere (:meth:`~railpilot.ground.assembly.GroundParts.new_dispatch`, with the
+    ground's retimer); by default a new one for ``line``.
     """
 
     def __init__(
@@ -79,11 +66,16 @@ class DispatchHost:
         *,
         clock: LinkClock | None = None,
         tick_s: float = TICK_S,
+        dispatch: GroundDispatch | None = None,
     ) -> None:
         timers = server.config.timers
         self.server = server
         self.line = line
-        self.dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        if dispatch is None:
+            dispatch = GroundDispatch(line, validity_s=timers.cycle_s * timers.timeout_cycles)
+        self.dispatch = dispatch
+        self.host = server.ground_host
+        self.host.dispatch = self.dispatch
         self._clock = server.clock if clock is None else clock
         self.tick_s = tick_s
         self._queued: list[Command] = []
@@ -97,7 +89,7 @@ class DispatchHost:
         self._tasks: set[asyncio.Task[dict[int, str]]] = set()
         #: computes each tick's block occupancy, one at a time (:meth:`_on_tick`)
         self._worker: ThreadPoolExecutor | None = None
-        server.add_listener(self._on_event)
+        server.command_sink = self._on_commands
 
     # ------------------------------------------------------------------ lifecycle
 
@@ -178,16 +170,11 @@ class DispatchHost:
 
     def sync(self) -> None:
         """What raises no event: which trains have an open connection."""
-        open_now = self.server.open_connections()
-        for train_id in self.dispatch.registry.train_ids():
-            self.dispatch.connection(train_id, train_id in open_now)
+        self.host.sync(self.server.open_connections())
 
     # ------------------------------------------------------------------ the link
 
-    def _on_event(self, train_id: int | None, event: Event, now_s: float) -> None:
-        commands = self.dispatch.on_event(train_id, event, now_s)
-        if not commands:
-            return
+    def _on_commands(self, commands: list[Command]) -> None:
         self._queued += commands
         if self._flush_scheduled:
             return
@@ -236,14 +223,7 @@ class DispatchHost:
             self.sync()
             return {**self.server.status(), "dispatch": self.dispatch.status(now)}
         self._flush()  # every train where it last said it was
-        checkpoint = self.dispatch.checkpoint()
-        outcome = self.dispatch.execute(operation, actor, now)
-        try:
-            self._record(operation, outcome, actor, now)
-        except OperationError:  # not in the store: not in force either, nothing sent
-            self.dispatch.roll_back(checkpoint)
-            raise
-        return outcome
+        return self.host.operate(operation, actor, now)
 
     @staticmethod
     def _answer(
@@ -268,32 +248,11 @@ class DispatchHost:
                 }
             )
 
-    def _record(self, operation: Operation, outcome: Outcome, actor: str, now_s: float) -> None:
-        """What the operation changed on the line goes to the store before its deliveries
-        leave (GroundJournal.record_operation)."""
-        journal = self.server.journal
-        if journal is None:
-            return
-        try:
-            journal.record_operation(operation, outcome.result, actor, now_s)
-        except StoreError as exc:
-            raise OperationError({"form": f"the store refused it: {exc}"}) from None
-
     # ------------------------------------------------------------------ carrying out
 
     def _send(self, command: Command, train_ids: list[int]) -> dict[int, str]:
-        """Carry out one command for ``train_ids`` through the server."""
-        s = self.server
-        if isinstance(command, DeliverTsr):
-            tsr, actor = command.tsr, command.tsr.set_by or "ground"
-            return s.set_tsr(train_ids, tsr.message, actor=actor, reason=tsr.reason)
-        if isinstance(command, CancelTsrOn):
-            return s.cancel_tsr(train_ids, command.session, actor=command.actor)
-        if isinstance(command, SendTargetPoint):
-            return s.send_target_point(train_ids, command.target, actor=command.actor)
-        if isinstance(command, SendRunningTimes):
-            return s.send_running_times(train_ids, command.times)
-        return s.send_dispatch_command(train_ids, command.command, actor=command.actor)
+        """Carry out one command for ``train_ids`` through the host, now."""
+        return self.host.carry_out_for(command, train_ids, self.server.clock())
 
     def _carry_out(self, commands: list[Command]) -> dict[int, str]:
         results: dict[int, str] = {}

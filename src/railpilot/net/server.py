@@ -2,20 +2,19 @@
 
 Thin adapter (DESIGN habit 2): each accepted connection gets a
 :class:`~railpilot.link.GroundEndpoint`; all of them share ONE ``records`` mapping
-(train id -> :class:`~railpilot.link.TrainRecord`) owned by this server, so pending TSRs,
-dispatch commands and replay protection survive reconnects. One
-:class:`~railpilot.net.timers.TickScheduler` ticks every connection at its deadline.
+(train id -> :class:`~railpilot.link.TrainRecord`), so pending TSRs, dispatch commands and
+replay protection survive reconnects. One :class:`~railpilot.net.timers.TickScheduler`
+ticks every connection at its deadline.
 
-What the server adds on top of the core:
+The ground's application rules (the records, delivery or queueing, take-over of a train
+that registers on a new connection, the undo of a refused request, persistence before
+effect, and with a dispatch core its commands) are the
+:class:`~railpilot.ground.host.GroundHost`'s; this server is its asyncio transport, as the
+co-simulation (cosim/link_sim.py) is its simulated one. What the server adds:
 
-* the current connection per registered train (a train that registers on a new connection
-  while an old one is still open gets the old one closed: the old one is a half-dead link
-  the train has already given up on);
 * ``status()``: per train whether a connection is open (``connected``, also while the train
   is deregistered and only heartbeats flow) and that connection's ground endpoint state;
 * a :class:`TrainView` per train: registrations, the latest running info and when it came;
-* deliveries for trains that are offline go into their record and leave on the next
-  registration (the core re-sends everything pending then);
 * key=value logging of every registration, acknowledgement and failure, and of frame
   rejections rate-limited per connection and check (:mod:`railpilot.net.rejections`);
 * graceful shutdown: stop listening, close every connection, stop the timer;
@@ -41,11 +40,11 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.ground.dispatch import Command
+from railpilot.ground.host import GroundHost
 from railpilot.ground.journal import (
-    EVENT_NAMES,
-    Apply,
     GroundJournal,
-    Request,
+    audit_name,
     dispatch_request,
     target_point_request,
     tsr_cancel_request,
@@ -53,7 +52,7 @@ from railpilot.ground.journal import (
 )
 from railpilot.ground.store import GroundStore, Snapshot, StoreError
 from railpilot.link import (
-    DispatchAcknowledged,
+    ACKNOWLEDGEMENTS,
     DispatchCommand,
     Event,
     FrameRejected,
@@ -61,7 +60,6 @@ from railpilot.link import (
     GroundEndpoint,
     KeyStore,
     LinkCounters,
-    LinkError,
     LinkFailed,
     MessageReceived,
     PeriodicTimedOut,
@@ -69,15 +67,12 @@ from railpilot.link import (
     RunningTimes,
     SequenceGap,
     TargetPoint,
-    TargetPointAcknowledged,
     TimeOffsetReport,
     TrainDeregistered,
     TrainRecord,
     TrainRegistered,
-    TsrAcknowledged,
-    TsrCancelAcknowledged,
-    TsrRefusedByTrain,
     TsrSet,
+    event_name,
 )
 from railpilot.link.config import REPLAY_WINDOW_S
 from railpilot.units import mps_to_kmh
@@ -90,6 +85,8 @@ log = logging.getLogger("railpilot.net.server")
 
 #: ``listener(train_id or None, event, now_s)``: sees every event of every connection.
 EventListener = Callable[[int | None, Event, float], None]
+#: ``sink(commands)``: takes the dispatch core's commands that the link's events gave
+CommandSink = Callable[[list[Command]], None]
 
 _COUNTER_FIELDS = (
     "frames_sent",
@@ -265,20 +262,23 @@ class GroundServer:
         if scheduler is not None and scheduler.clock is not clock:
             raise ConfigError("scheduler", scheduler.clock, f"a scheduler on the server's {clock}")
         self.clock = clock
-        self.config = config
         self.store = store
-        #: what the ground commits to ``store`` before anything leaves, and restores
-        self.journal = GroundJournal(store) if store is not None else None
+        #: the ground's application rules over this server's connections
+        self.ground_host: GroundHost[GroundConnection] = GroundHost(
+            config,
+            _ServerTransport(),
+            journal=GroundJournal(store) if store is not None else None,
+            note=lambda level, event, fields: kv(log, level, event, **fields),
+        )
+        #: where the dispatch core's commands go (net/dispatch_host.py sets it)
+        self.command_sink: CommandSink | None = None
         self.replay_window_s = replay_window_s
-        self.keys = keys
+        self.keys: KeyStore | None = keys
         self.host = host
         self.port = port
         self.backlog = backlog
         self.scheduler = scheduler if scheduler is not None else TickScheduler(clock=clock)
-        self.records: dict[int, TrainRecord] = {}
         self.views: dict[int, TrainView] = {}
-        #: Registered train id -> its current connection.
-        self.live: dict[int, GroundConnection] = {}
         self._connections: set[GroundConnection] = set()
         self._closed_counters = LinkCounters()
         self._listeners: list[EventListener] = []
@@ -355,6 +355,30 @@ class GroundServer:
         self.scheduler.close()
         kv(log, logging.INFO, "stopped", trains=len(self.records))
 
+    @property
+    def config(self) -> GroundConfig:
+        """The ground endpoints' configuration (its ``not_before_s`` set at start)."""
+        return self.ground_host.config
+
+    @config.setter
+    def config(self, config: GroundConfig) -> None:
+        self.ground_host.config = config
+
+    @property
+    def journal(self) -> GroundJournal | None:
+        """What the ground commits to ``store`` before anything leaves, and restores."""
+        return self.ground_host.journal
+
+    @property
+    def records(self) -> dict[int, TrainRecord]:
+        """Train id -> its record, shared by every connection's endpoint."""
+        return self.ground_host.records
+
+    @property
+    def live(self) -> dict[int, GroundConnection]:
+        """Registered train id -> its current connection."""
+        return self.ground_host.live
+
     async def __aenter__(self) -> GroundServer:
         await self.start()
         return self
@@ -371,48 +395,6 @@ class GroundServer:
     def known_trains(self) -> list[int]:
         """Trains that have registered at least once (the targets of ``all``)."""
         return sorted(t for t, r in self.records.items() if r.registration is not None)
-
-    def _deliver(self, train_id: int, request: Request, apply: Apply) -> str:
-        """Run ``apply(endpoint_or_record, now)`` on the live endpoint, else on the record.
-
-        With a store, the request is first committed (:meth:`GroundJournal.commit_request`):
-        a refused one writes nothing, and a failed write changes and sends nothing.
-        """
-        action = request.action
-        now = self.clock()
-        if self.journal is not None:
-            self.journal.commit_request(self.records.get(train_id), train_id, request, apply, now)
-        conn = self.live.get(train_id)
-        if conn is not None and conn.open and conn.endpoint.train_id == train_id:
-            apply(conn.endpoint, now)
-            conn._after(now)
-            outcome = "sending"
-        else:
-            record = self.records.get(train_id)
-            created = record is None
-            if record is None:
-                record = self.records[train_id] = TrainRecord(train_id)
-                record.history.not_before_us = round(self.config.not_before_s * 1e6)
-            try:
-                apply(record, now)
-            except LinkError:
-                if created:  # a refused request must not invent a train
-                    del self.records[train_id]
-                raise
-            outcome = "queued until the train registers"
-        kv(log, logging.INFO, action, train=train_id, outcome=outcome)
-        return outcome
-
-    def _each(self, train_ids: Iterable[int], request: Request, apply: Apply) -> dict[int, str]:
-        """Deliver to every train; a refusal for one train does not stop the others."""
-        results: dict[int, str] = {}
-        for train_id in train_ids:
-            try:
-                results[train_id] = self._deliver(train_id, request, apply)
-            except (LinkError, StoreError) as exc:
-                results[train_id] = f"error: {exc}"
-                kv(log, logging.WARNING, f"{request.action}_refused", train=train_id, error=exc)
-        return results
 
     async def paced(
         self,
@@ -448,7 +430,9 @@ class GroundServer:
             else:
                 target.add_tsr(tsr)
 
-        return self._each(train_ids, tsr_set_request(tsr, actor, reason), apply)
+        return self.ground_host.deliver_each(
+            train_ids, tsr_set_request(tsr, actor, reason), apply, self.clock()
+        )
 
     def cancel_tsr(
         self, train_ids: Iterable[int], session: int, *, actor: str = "api"
@@ -461,7 +445,9 @@ class GroundServer:
             else:
                 target.cancel_tsr(session)
 
-        return self._each(train_ids, tsr_cancel_request(session, actor), apply)
+        return self.ground_host.deliver_each(
+            train_ids, tsr_cancel_request(session, actor), apply, self.clock()
+        )
 
     def send_target_point(
         self, train_ids: Iterable[int], target: TargetPoint, *, actor: str = "api"
@@ -472,7 +458,9 @@ class GroundServer:
             else:
                 dest.add_target_point(target)
 
-        return self._each(train_ids, target_point_request(target, actor), apply)
+        return self.ground_host.deliver_each(
+            train_ids, target_point_request(target, actor), apply, self.clock()
+        )
 
     def send_dispatch_command(
         self, train_ids: Iterable[int], command: DispatchCommand, *, actor: str = "api"
@@ -483,23 +471,15 @@ class GroundServer:
             else:
                 dest.add_dispatch_command(command)
 
-        return self._each(train_ids, dispatch_request(command, actor), apply)
+        return self.ground_host.deliver_each(
+            train_ids, dispatch_request(command, actor), apply, self.clock()
+        )
 
     def send_running_times(self, train_ids: Iterable[int], times: RunningTimes) -> dict[int, str]:
         """Send running times now to each train registered on an open connection. They are
         unacknowledged and not kept: a train not connected is not sent them (the dispatch
         core sends its last ones when it registers)."""
-        now = self.clock()
-        results: dict[int, str] = {}
-        for train_id in train_ids:
-            conn = self.live.get(train_id)
-            if conn is not None and conn.open and conn.endpoint.holds_registration:
-                conn.endpoint.send(times, now)
-                conn._after(now)
-                results[train_id] = "sent"
-            else:
-                results[train_id] = "not sent: the train is not registered"
-        return results
+        return self.ground_host.send_running_times(train_ids, times, self.clock())
 
     # --- status -------------------------------------------------------------------------------
 
@@ -592,9 +572,7 @@ class GroundServer:
     def _restore(self, snapshot: Snapshot) -> None:
         """Rebuild the train records from the store (:meth:`GroundJournal.restore`)."""
         assert self.journal is not None
-        self.records, summary = self.journal.restore(
-            snapshot, self.config.not_before_s, self.clock()
-        )
+        summary = self.ground_host.restore(snapshot, self.clock())
         self.restored = summary
         kv(log, logging.INFO, "restored", store=self.journal.store.path, **summary)
 
@@ -622,9 +600,7 @@ class GroundServer:
 
     def _on_closed(self, conn: GroundConnection) -> None:
         self._connections.discard(conn)
-        train_id = conn.endpoint.train_id
-        if train_id is not None and self.live.get(train_id) is conn:
-            del self.live[train_id]
+        self.ground_host.closed(conn, conn.endpoint.train_id)
         # Keep the totals of finished connections without keeping the connections.
         closed = self._closed_counters
         for name in _COUNTER_FIELDS:
@@ -633,6 +609,8 @@ class GroundServer:
 
     def _handle(self, conn: GroundConnection, event: Event, now_s: float) -> None:
         train_id = conn.endpoint.train_id
+        # the ground's rules first (take-over, the live map, the dispatch core)
+        commands = self.ground_host.on_event(conn, event, now_s)
         if isinstance(event, MessageReceived):
             message = event.message
             if isinstance(message, RunningInfo) and train_id is not None:
@@ -643,10 +621,6 @@ class GroundServer:
             elif isinstance(message, TimeOffsetReport):
                 kv(log, logging.DEBUG, "time_offset", train=train_id, offset_s=message.offset_s)
         elif isinstance(event, TrainRegistered):
-            old = self.live.get(event.train_id)
-            if old is not None and old is not conn:
-                old.close("train registered on a new connection")
-            self.live[event.train_id] = conn
             view = self._view(event.train_id)
             view.registrations += 1
             view.registered_at_s = now_s
@@ -662,21 +636,12 @@ class GroundServer:
                 peer=conn.peer,
             )
         elif isinstance(event, TrainDeregistered):
-            if self.live.get(event.train_id) is conn:
-                del self.live[event.train_id]
             kv(log, logging.INFO, "deregistered", train=event.train_id, reason=event.reason.name)
-        elif isinstance(
-            event,
-            TsrAcknowledged
-            | TsrCancelAcknowledged
-            | TsrRefusedByTrain
-            | DispatchAcknowledged
-            | TargetPointAcknowledged,
-        ):
-            self._view(event.train_id).acks[type(event).__name__] += 1
+        elif isinstance(event, ACKNOWLEDGEMENTS):
+            self._view(event.train_id).acks[event_name(event)] += 1
             fields = {k: getattr(event, k) for k in event.__dataclass_fields__}
             fields = {k: getattr(v, "name", v) for k, v in fields.items()}
-            kv(log, logging.INFO, EVENT_NAMES[type(event)], **fields)
+            kv(log, logging.INFO, audit_name(event), **fields)
         elif isinstance(event, FrameRejected):
             conn.rejections.record(event, now_s, train=train_id, peer=conn.peer)
         elif isinstance(event, SequenceGap):
@@ -695,3 +660,15 @@ class GroundServer:
             conn.close(f"link failed: {event.reason}")
         for listener in self._listeners:
             listener(train_id, event, now_s)
+        if commands and self.command_sink is not None:
+            self.command_sink(commands)
+
+
+class _ServerTransport:
+    """How the ground host writes out and closes the server's connections."""
+
+    def flush(self, conn: GroundConnection, now_s: float) -> None:
+        conn._after(now_s)
+
+    def close(self, conn: GroundConnection, reason: str) -> None:
+        conn.close(reason)

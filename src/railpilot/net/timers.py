@@ -1,10 +1,11 @@
-"""One timer for many endpoints: a deadline heap driven by a single asyncio timer handle.
+"""One timer for many endpoints: the deadline heap (deadlines.py) driven by asyncio.
 
 A thousand trains must not mean a thousand sleeping tasks polling every 50 ms: each
 endpoint says when it next needs :meth:`~railpilot.link.Endpoint.tick`
-(``next_deadline_s()``), and this scheduler keeps those deadlines in a heap and arms ONE
-``loop.call_at`` for the earliest. Ticks therefore happen when something is due (a
-heartbeat, running info, a resend, a timeout), not on a fixed grid.
+(``next_deadline_s()``), and this scheduler keeps those deadlines in a
+:class:`~railpilot.deadlines.DeadlineHeap` and arms ONE ``loop.call_at`` for the earliest
+(its :class:`~railpilot.deadlines.AsyncioAlarm`). Ticks therefore happen when something is
+due (a heartbeat, running info, a resend, a timeout), not on a fixed grid.
 
 Core times are epoch seconds (a :class:`LinkClock`: ``time.time()`` unless the run is on a
 simulated clock; frame timestamps derive from it); asyncio timers run on the loop's
@@ -13,12 +14,10 @@ monotonic clock. The conversion happens here and only here.
 
 from __future__ import annotations
 
-import asyncio
-import heapq
-import itertools
 import time
 from typing import Protocol
 
+from railpilot.deadlines import AsyncioAlarm, DeadlineHeap
 from railpilot.errors import ConfigError, is_finite_number
 
 
@@ -117,10 +116,8 @@ class TickScheduler:
         self.clock = clock
         self.max_interval_s = max_interval_s
         self.min_interval_s = min_interval_s
-        self._heap: list[tuple[float, int, Tickable]] = []
-        self._order = itertools.count()
-        self._handle: asyncio.TimerHandle | None = None
-        self._armed_s = float("inf")
+        self._heap: DeadlineHeap[Tickable] = DeadlineHeap()
+        self._alarm = AsyncioAlarm(self._wait_s, self._fire)
         self._closed = False
         #: Number of ``on_tick`` calls made (for the load test's report).
         self.ticks = 0
@@ -137,9 +134,8 @@ class TickScheduler:
         if item.scheduled_s is not None and item.scheduled_s <= deadline:
             return  # an earlier wake-up is already queued; it will reschedule
         item.scheduled_s = deadline
-        heapq.heappush(self._heap, (deadline, next(self._order), item))
-        if deadline < self._armed_s:
-            self._arm(deadline)
+        self._heap.push(deadline, item)
+        self._alarm.arm(deadline)
 
     def cancel(self, item: Tickable) -> None:
         """Stop ticking ``item`` (its heap entry is dropped lazily)."""
@@ -148,34 +144,25 @@ class TickScheduler:
     def close(self) -> None:
         """Stop all ticking."""
         self._closed = True
-        if self._handle is not None:
-            self._handle.cancel()
-            self._handle = None
-        for _, _, item in self._heap:
+        self._alarm.cancel()
+        for item in self._heap.items():
             item.scheduled_s = None
         self._heap.clear()
 
     def __len__(self) -> int:
         return len(self._heap)
 
-    def _arm(self, deadline_s: float) -> None:
-        loop = asyncio.get_running_loop()
-        if self._handle is not None:
-            self._handle.cancel()
-        self._armed_s = deadline_s
-        wait = self.clock.wall_s(deadline_s - self.clock())
-        self._handle = loop.call_at(loop.time() + wait, self._fire)
+    def _wait_s(self, deadline_s: float) -> float:
+        """How long the event loop waits [s] until ``deadline_s`` on the link's clock."""
+        return self.clock.wall_s(deadline_s - self.clock())
 
     def _fire(self) -> None:
-        self._handle = None
-        self._armed_s = float("inf")
         heap = self._heap
-        while heap:
+        while (earliest := heap.earliest_s()) is not None:
             now = self.clock()
-            deadline, _, item = heap[0]
-            if deadline > now:
+            if earliest > now:
                 break
-            heapq.heappop(heap)
+            deadline, item = heap.pop()
             if item.scheduled_s != deadline:
                 continue  # stale entry: cancelled or requeued earlier
             item.scheduled_s = None
@@ -184,5 +171,6 @@ class TickScheduler:
             item.on_tick(now)
             if item.scheduled_s is None and not self._closed:
                 self.schedule(item, now_s=now)
-        if heap and not self._closed:
-            self._arm(heap[0][0])
+        earliest = heap.earliest_s()
+        if earliest is not None and not self._closed:
+            self._alarm.arm(earliest)

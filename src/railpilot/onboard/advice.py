@@ -1,4 +1,4 @@
-"""Driving advice from the planned curve, and a driver who follows it (issue 10 item 7).
+"""Driving advice from the planned curve, and a driver who follows it.
 
 Paper 001's onboard gives the driver advice from an expert knowledge base; ours is the
 planned curve read at the train's position, with a correction for the speed error, turned
@@ -29,7 +29,7 @@ from typing import Literal
 import numpy as np
 
 from railpilot.errors import ConfigError
-from railpilot.onboard.planner import DrivingTrain, PlannedCurve
+from railpilot.onboard.planner import DrivingTrain, SpeedPlan
 from railpilot.onboard.report import remaining_time_s
 from railpilot.units import G_MPS2, KMH_PER_MPS
 from railpilot.vehicle.resistance import davis_specific_resistance
@@ -86,7 +86,7 @@ def _coast_decel(train: DrivingTrain, v: float, line_w: float) -> float:
 
 def advise(
     train: DrivingTrain,
-    plan: PlannedCurve,
+    plan: SpeedPlan,
     line_w: np.ndarray,
     s_m: float,
     v_mps: float,
@@ -96,7 +96,7 @@ def advise(
     """The advice at ``s_m`` [m from the departure stop], ``v_mps`` [m/s], ``elapsed_s`` [s].
 
     ``line_w`` the section's line resistance [N/kN] on the plan's grid
-    (``planner.Section.line_w``); ``air_decel_mps2`` the air brake's full service.
+    (``planner.SectionGrid.line_w``); ``air_decel_mps2`` the air brake's full service.
     """
     if not (math.isfinite(v_mps) and v_mps >= 0):
         raise ConfigError("v_mps", v_mps, "a finite speed >= 0 [m/s]")

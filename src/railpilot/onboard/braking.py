@@ -3,7 +3,7 @@
 Paper 001 section 2.5 has the onboard decide, for a temporary speed restriction ahead,
 whether the locomotive's maximum regenerative brake alone brings the train under the limit
 in time, integrating the gradient, the running resistance and the regenerative envelope;
-and if not, to apply the air brake early. Issue 10 items 3 and 5. This module is the
+and if not, to apply the air brake early. This module is the
 prediction both need: a point-mass train with length-averaged gradient forces
 (vehicle/profile.py), Davis resistance (vehicle/resistance.py), the locomotive's regenerative
 envelope (vehicle/traction.py) and the brake-pipe air brake's build-up along the train

@@ -1,7 +1,7 @@
 """One station pair driven under the onboard system: MRSP, TSR checks, plan, simulation.
 
-The pieces of the onboard application put together for a train on a line (issue 10 item 9,
-``railpilot drive``): the most restrictive speed profile of the line's static limits, the
+The pieces of the onboard application put together for a train on a line
+(``railpilot drive``): the most restrictive speed profile of the line's static limits, the
 TSRs (extended by the train's length) and the target points (each moved back by the
 safety distance); the paper's TSR check for each restriction ahead; the energy-efficient
 planned curve for the running time; and the simulation core driving the train along the
@@ -46,8 +46,8 @@ from railpilot.onboard.mrsp import (
 from railpilot.onboard.planner import (
     DEFAULT_STEP_M,
     DrivingTrain,
-    PlannedCurve,
-    Section,
+    SectionGrid,
+    SpeedPlan,
     fastest,
     plan,
     section,
@@ -55,12 +55,13 @@ from railpilot.onboard.planner import (
 )
 from railpilot.onboard.supervision import SupervisionCurve, supervision_curve
 from railpilot.onboard.target_point import safety_distance_m
+from railpilot.scenario.consist_file import consist_preset
 from railpilot.scenario.model import ATOModel, ControllerSpec, Scenario, SimSettings
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.result import SimResult
 from railpilot.sim.stepper import Stepper
 from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps, mps_to_kmh
-from railpilot.vehicle.consist import Consist, consist_preset
+from railpilot.vehicle.consist import Consist
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import ResistanceTable, elevation_table, mean_specific_resistance
 from railpilot.vehicle.train import Train
@@ -73,7 +74,7 @@ CONSIST_MAX_DT_S = 0.05
 #: the running-time supplement over the fastest run when none is given
 DEFAULT_SUPPLEMENT = 0.10
 #: the onboard aims this far short of a target stop [m]: the heavy-haul precise stop's
-#: tolerance (issue 10), so it never ends beyond the end of authority
+#: tolerance, so it never ends beyond the end of authority
 TARGET_STOP_MARGIN_M = 2.0
 #: the plan keeps this far below the MRSP [km/h], room for the ATO's tracking error (a
 #: production ATO's target speed sits below the permitted speed the same way)
@@ -183,7 +184,7 @@ class Replan:
     time_s: float
     from_m: float
     reason: str
-    plan: PlannedCurve
+    plan: SpeedPlan
 
 
 @dataclass(frozen=True)
@@ -197,7 +198,7 @@ class DriveOutcome:
     arrival_m: float
     mrsp: Mrsp
     static: SpeedProfile
-    plan: PlannedCurve
+    plan: SpeedPlan
     result: SimResult
     tsr_checks: tuple[dict[str, Any], ...]
     train_length_m: float
@@ -440,7 +441,7 @@ def departure_section(
     from_station: int,
     to_station: int,
     margin_kmh: float = DEFAULT_MARGIN_KMH,
-) -> Section:
+) -> SectionGrid:
     """The planner's section of a station pair as the train departs with no TSR or target
     point: the whole-train MRSP of the static limits less the margin (the ground asks the
     planner for its energy-time curves with it, ground/energy.py)."""
@@ -560,7 +561,7 @@ class StationRoute:
         )
         return most_restrictive_profile(static, self.tsrs_at(t_s), stops, direction=self.direction)
 
-    def section_from(self, mrsp: Mrsp, s0: float, v0: float) -> tuple[float, Section]:
+    def section_from(self, mrsp: Mrsp, s0: float, v0: float) -> tuple[float, SectionGrid]:
         """The planner's section from ``s0`` [m from the departure] at ``v0`` [m/s] to the
         arrival stop or the first target stop before it, and where that end is."""
         end_s = self.next_stop_s(mrsp, s0)
@@ -600,7 +601,7 @@ class StationRoute:
                 end_s = s
         return end_s
 
-    def plan_to(self, end_s: float, sec: Section, time_s: float, s0: float) -> PlannedCurve:
+    def plan_to(self, end_s: float, sec: SectionGrid, time_s: float, s0: float) -> SpeedPlan:
         """The plan of ``sec``: for ``time_s`` if it ends at the arrival; to a target stop,
         for that stop's share of the time by distance (the target may clear)."""
         share = (end_s - s0) / max(self.length_m - s0, 1e-9)
@@ -611,7 +612,7 @@ class StationRoute:
             self._stop_net_mps2(end_s),
         )
 
-    def fastest_to(self, end_s: float, sec: Section) -> PlannedCurve:
+    def fastest_to(self, end_s: float, sec: SectionGrid) -> SpeedPlan:
         """The fastest run of ``sec`` to its stop at ``end_s`` [m from the departure]
         (the baseline driver's), braked to a target stop as :meth:`plan_to` brakes."""
         return fastest(self.preset.driving, sec, self._stop_net_mps2(end_s))
@@ -742,7 +743,7 @@ def _check_fields(
 def _tsr_check(
     preset: TrainPreset,
     table: ResistanceTable,
-    planned: PlannedCurve,
+    planned: SpeedPlan,
     tsr: AppliedTsr,
     direction: TravelDirection,
     departure_m: float,
@@ -779,7 +780,7 @@ def _tsr_check(
 def plan_follower(
     preset: TrainPreset,
     vehicle_line: Line,
-    curve: PlannedCurve,
+    curve: SpeedPlan,
     end_s: float,
     dt_s: float,
     duration_s: float,
@@ -828,7 +829,7 @@ def follow_plan(stepper: Stepper | ConsistDrive, profile: PlannedProfile, end_s:
 def drive_scenario(
     preset: TrainPreset,
     vehicle_line: Line,
-    planned: PlannedCurve,
+    planned: SpeedPlan,
     dt_s: float,
     duration_s: float | None = None,
     record_every: int = 1,

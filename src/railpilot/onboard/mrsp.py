@@ -1,4 +1,4 @@
-"""Most restrictive speed profile (MRSP) (paper 001, sections 2.4-2.5; issue 10 item 2).
+"""Most restrictive speed profile (MRSP) (paper 001, sections 2.4-2.5).
 
 The MRSP is the pointwise minimum of everything that limits the train's speed along the
 line: the static limits of the line, the temporary speed restrictions (TSRs) in force, each

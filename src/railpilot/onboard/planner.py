@@ -2,7 +2,7 @@
 
 The onboard computes an advisory speed profile that meets the running time the ground
 sends, with as little energy as it can: maximum traction, cruise, coast, regenerative hold
-on descents, brake (issue 10 item 6). The method is MARECO's economic allowance (SNCF; as
+on descents, brake. The method is MARECO's economic allowance (SNCF; as
 OSRD implements it, ``MarecoAllowance``): cap the speed at ``v1``, and coast wherever the
 train can, before every braking and before every descent that would accelerate it beyond
 ``v1``, down to the speed ``vf(v1)`` at which braking pays; then search ``v1`` so that the
@@ -351,7 +351,7 @@ def _evaluate(
 
 
 @dataclass(frozen=True)
-class PlannedCurve:
+class SpeedPlan:
     """A planned speed profile over a section and what following it costs.
 
     Attributes
@@ -403,7 +403,7 @@ class PlannedCurve:
 
 
 @dataclass(frozen=True)
-class Section:
+class SectionGrid:
     """A section to plan: the grid, the ceiling and the line resistance on it.
 
     Build with :func:`section`.
@@ -425,7 +425,7 @@ def section(
     train_length_m: float = 0.0,
     step_m: float = DEFAULT_STEP_M,
     initial_speed_mps: float = 0.0,
-) -> Section:
+) -> SectionGrid:
     """The planner's grid from the departure stop at ``start_m`` [m] over ``length_m`` [m].
 
     ``ceiling``: ``(edges_m, speeds_mps)`` of the most restrictive speed profile in the
@@ -457,20 +457,20 @@ def section(
     c[-1] = 0.0
     x = start_m + direction * s
     w = length_averaged_resistance(table, x, train_length_m, 1.0 if direction >= 0 else -1.0)
-    return Section(s, c, np.asarray(w, dtype=float), dx)
+    return SectionGrid(s, c, np.asarray(w, dtype=float), dx)
 
 
 def _result(
     train: DrivingTrain,
-    sec: Section,
+    sec: SectionGrid,
     v: np.ndarray,
     v1: float | None,
     vf: float | None,
     requested: float | None,
-) -> PlannedCurve:
+) -> SpeedPlan:
     time, drawn, returned, _ = _evaluate(train.params(), sec.line_w, v, sec.dx_m)
     met = requested is None or abs(time - requested) <= TIME_TOLERANCE_S
-    return PlannedCurve(
+    return SpeedPlan(
         sec.s_m,
         v,
         time,
@@ -489,7 +489,7 @@ def target_stop_net(train: DrivingTrain) -> float:
     return TARGET_STOP_NET_SHARE * train.brake_mps2
 
 
-def fastest(train: DrivingTrain, sec: Section, stop_net_mps2: float = 0.0) -> PlannedCurve:
+def fastest(train: DrivingTrain, sec: SectionGrid, stop_net_mps2: float = 0.0) -> SpeedPlan:
     """The fastest profile: full traction, the ceiling, the planning brake (to a stop at
     the end, at least ``stop_net_mps2`` [m/s^2] net: a target stop, ``target_stop_net``)."""
     if not (math.isfinite(stop_net_mps2) and stop_net_mps2 >= 0.0):
@@ -503,8 +503,8 @@ def fastest(train: DrivingTrain, sec: Section, stop_net_mps2: float = 0.0) -> Pl
 
 
 def plan(
-    train: DrivingTrain, sec: Section, running_time_s: float, stop_net_mps2: float = 0.0
-) -> PlannedCurve:
+    train: DrivingTrain, sec: SectionGrid, running_time_s: float, stop_net_mps2: float = 0.0
+) -> SpeedPlan:
     """The MARECO profile that runs the section in ``running_time_s`` [s] (docstring);
     ``stop_net_mps2`` as :func:`fastest`'s.
 
@@ -519,7 +519,7 @@ def plan(
         return replace(quickest, requested_time_s=running_time_s, met=met)
     q = train.params()
     top = float(sec.ceiling_mps.max())
-    best: PlannedCurve | None = None
+    best: SpeedPlan | None = None
     for share in REGEN_BRAKING_SHARES:
         candidate = _search_v1(train, q, sec, running_time_s, share * top, stop_net_mps2)
         if candidate is None:
@@ -538,11 +538,11 @@ def plan(
 def _search_v1(
     train: DrivingTrain,
     q: np.ndarray,
-    sec: Section,
+    sec: SectionGrid,
     running_time_s: float,
     vb: float,
     stop_net: float,
-) -> PlannedCurve | None:
+) -> SpeedPlan | None:
     """Bisection on ``v1`` for one ``vb``; None if this family cannot run that fast."""
     # v1 may exceed the ceiling: the cap then binds nowhere and only vf(v1) < top speed
     # makes the train coast; the search starts where vf reaches the top (no coasting)
@@ -575,7 +575,7 @@ def _search_v1(
     return None
 
 
-def linear_margin(train: DrivingTrain, sec: Section, running_time_s: float) -> PlannedCurve:
+def linear_margin(train: DrivingTrain, sec: SectionGrid, running_time_s: float) -> SpeedPlan:
     """The baseline: the fastest profile with every speed scaled by one factor.
 
     ``v(s) = k v_fast(s)`` with ``k = T_fast / T``: the same running time spread uniformly
@@ -585,8 +585,8 @@ def linear_margin(train: DrivingTrain, sec: Section, running_time_s: float) -> P
 
 
 def _uniform(
-    train: DrivingTrain, sec: Section, quickest: PlannedCurve, running_time_s: float
-) -> PlannedCurve:
+    train: DrivingTrain, sec: SectionGrid, quickest: SpeedPlan, running_time_s: float
+) -> SpeedPlan:
     k = min(1.0, quickest.running_time_s / running_time_s)
     curve = _result(train, sec, quickest.speed_mps * k, None, None, running_time_s)
     return replace(curve, strategy="uniform")

@@ -1,4 +1,4 @@
-"""The planned-curve report to the ground (paper 001 section 2.3; issue 10 item 8).
+"""The planned-curve report to the ground (paper 001 section 2.3).
 
 The onboard tells the ground how it stands on the current station pair: the time already
 run and the time its plan still needs (link message ``PlannedCurve``), so the ground can
@@ -21,10 +21,10 @@ from railpilot.errors import ConfigError
 from railpilot.interp import interp_at
 from railpilot.jit import njit
 from railpilot.link.messages import PlannedCurve
-from railpilot.onboard.planner import PlannedCurve as Plan
+from railpilot.onboard.planner import SpeedPlan
 
 
-def remaining_time_s(plan: Plan, position_s_m: float) -> float:
+def remaining_time_s(plan: SpeedPlan, position_s_m: float) -> float:
     """Time [s] the plan still needs from ``position_s_m`` [m from the departure stop].
 
     The plan's running time minus its time to reach that point (trapezoidal in ``1 / v``

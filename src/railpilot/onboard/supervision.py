@@ -1,4 +1,4 @@
-"""Supervision curves for a decrease of the speed profile or a target point (issue 10 item 3).
+"""Supervision curves for a decrease of the speed profile or a target point.
 
 In the manner of ETCS (SUBSET-026 3.13): from the train's own braking model
 (onboard/braking.py), a deceleration curve backwards from the target (a lower speed at a

@@ -10,22 +10,21 @@ gives the same for a whole run, for ``railpilot drive --timetable FILE``. TOML::
     running_time_s = 1640.0
 
 Sections must chain (each starts where the previous one ended). Errors name the entry
-(``sections[3].running_time_s``), the value and what is allowed.
+(``sections[3].running_time_s``), the value and what is allowed. The file may be JSON too
+(a name ending in ``.json``); its JSON Schema: ``railpilot schema timetable``.
 """
 
 from __future__ import annotations
 
-import tomllib
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from railpilot.errors import ConfigError, is_finite_number
-from railpilot.textfile import read_toml
-
-#: the keys of a section, and of the file
-SECTION_KEYS = ("from", "to", "running_time_s")
-FILE_KEYS = ("name", "sections")
+from railpilot.errors import ConfigError
+from railpilot.schema.reading import parse_text, read_document
+from railpilot.schema.timetable import TimetableFile
+from railpilot.schema.validate import Loc, check, dotted
 
 
 @dataclass(frozen=True)
@@ -56,43 +55,29 @@ class Timetable:
         raise ConfigError("--to", to_id, f"a station the timetable reaches after {from_id}")
 
 
-def parse_timetable(data: dict[str, Any], source: str = "<timetable>") -> Timetable:
-    """A :class:`Timetable` from parsed TOML, validated (module docstring)."""
-    for key in data:
-        if key not in FILE_KEYS:
-            raise ConfigError(f"{source}: {key}", data[key], f"one of {', '.join(FILE_KEYS)}")
-    name = data.get("name", Path(source).stem)
-    if not isinstance(name, str):
-        raise ConfigError("name", name, "a string")
-    raw = data.get("sections")
-    if not isinstance(raw, list) or not raw:
-        raise ConfigError("sections", raw, "a non-empty list of [[sections]] tables")
+def parse_timetable(data: Mapping[str, Any], source: str = "<timetable>") -> Timetable:
+    """A :class:`Timetable` from a parsed file, validated (module docstring; the format:
+    railpilot.schema.timetable)."""
+
+    def place(loc: Loc, _: Any) -> str:
+        # a key the file may not have is named with the file: it is not the file's own
+        unknown = len(loc) == 1 and loc[0] not in TimetableFile.model_fields
+        return f"{source}: {loc[0]}" if unknown else dotted(loc)
+
+    top = check(TimetableFile, data, ConfigError, name=place)
     sections: list[TimetableSection] = []
-    for i, entry in enumerate(raw):
+    for i, entry in enumerate(top.sections):
         where = f"sections[{i}]"
-        if not isinstance(entry, dict):
-            raise ConfigError(where, entry, "a table with from, to, running_time_s")
-        for key in entry:
-            if key not in SECTION_KEYS:
-                raise ConfigError(f"{where}.{key}", entry[key], f"one of {', '.join(SECTION_KEYS)}")
-        for key in ("from", "to"):
-            value = entry.get(key)
-            if isinstance(value, bool) or not isinstance(value, int) or value < 0:
-                raise ConfigError(f"{where}.{key}", value, "a station id (an integer >= 0)")
-        time = entry.get("running_time_s")
-        if isinstance(time, bool) or not (
-            isinstance(time, int | float) and is_finite_number(time) and 0 < time <= 86_400
-        ):
-            raise ConfigError(f"{where}.running_time_s", time, "a running time in (0, 86400] s")
-        if entry["from"] == entry["to"]:
-            raise ConfigError(f"{where}.to", entry["to"], "a station other than from")
-        if sections and sections[-1].to_id != entry["from"]:
+        if entry.from_ == entry.to:
+            raise ConfigError(f"{where}.to", entry.to, "a station other than from")
+        if sections and sections[-1].to_id != entry.from_:
             raise ConfigError(
                 f"{where}.from",
-                entry["from"],
+                entry.from_,
                 f"{sections[-1].to_id}, where sections[{i - 1}] ends (sections must chain)",
             )
-        sections.append(TimetableSection(entry["from"], entry["to"], float(time)))
+        sections.append(TimetableSection(entry.from_, entry.to, entry.running_time_s))
+    name = top.name if top.given("name") else Path(source).stem
     return Timetable(name, tuple(sections))
 
 
@@ -107,6 +92,7 @@ def load_timetable(name_or_path: str | Path) -> Timetable:
         from importlib.resources import files
 
         text = files("railpilot.line.data").joinpath(SHIPPED[name_or_path]).read_text("utf-8")
-        return parse_timetable(tomllib.loads(text), SHIPPED[name_or_path])
+        source = SHIPPED[name_or_path]
+        return parse_timetable(parse_text(text, source, "--timetable", ConfigError), source)
     p = Path(name_or_path)
-    return parse_timetable(read_toml(p, "--timetable", "timetable file"), str(p))
+    return parse_timetable(read_document(p, "--timetable", "timetable file", ConfigError), str(p))

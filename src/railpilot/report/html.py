@@ -8,7 +8,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot import __version__
-from railpilot.reproduce.base import Reproduction, Table
+from railpilot.report.section import Reproduction, Table
 
 STYLE = """
 body { font-family: system-ui, sans-serif; max-width: 1150px; margin: 2em auto; color: #222; }

@@ -10,7 +10,7 @@ import numpy as np
 from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 
-from railpilot.ground.retime import RetimeProblem, RetimeResult, TrainPlan, TrainTimes
+from railpilot.ground.running_time_lp import RetimeProblem, RetimeResult, TrainPlan, TrainTimes
 
 #: seconds per hour (the figure's time axis)
 _H = 3600.0

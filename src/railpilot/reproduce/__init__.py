@@ -19,7 +19,7 @@ REPRODUCTIONS: dict[str, str] = {
     "link-demo": "railpilot.reproduce.link_demo",
     "precise-stop": "railpilot.reproduce.precise_stop",
     "heavy-haul-ltd": "railpilot.reproduce.heavy_haul_ltd",
-    "retiming": "railpilot.reproduce.retiming",
+    "retiming": "railpilot.reproduce.retiming_vs_fixed_plan",
     "line-day": "railpilot.reproduce.line_day",
     "line-live": "railpilot.reproduce.line_live",
     # last: Playwright's sync API leaves an event loop marked running in this thread

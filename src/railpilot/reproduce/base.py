@@ -1,58 +1,14 @@
-"""What a reproduction returns: JSON payload, tables and figures for the report."""
+"""What a reproduction returns (:class:`Reproduction`, with its :class:`Table` s: they are the
+report's sections, defined in :mod:`railpilot.report.section`), and where the examples are."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.report.section import Reproduction, Table
 
-
-@dataclass
-class Table:
-    """A table for the report: a title, column headers and rows of cells."""
-
-    title: str
-    columns: list[str]
-    rows: list[list[Any]]
-    note: str = ""
-
-    def to_text(self) -> str:
-        """Plain-text rendering for the terminal."""
-        cells = [[_fmt(c) for c in row] for row in self.rows]
-        widths = [len(c) for c in self.columns]
-        for row in cells:
-            widths = [max(w, len(c)) for w, c in zip(widths, row, strict=True)]
-        line = "  ".join(h.ljust(w) for h, w in zip(self.columns, widths, strict=True))
-        out = [self.title, line, "-" * len(line)]
-        out += ["  ".join(c.ljust(w) for c, w in zip(row, widths, strict=True)) for row in cells]
-        if self.note:
-            out.append(self.note)
-        return "\n".join(out)
-
-
-def _fmt(value: Any) -> str:
-    if isinstance(value, float):
-        return f"{value:.4g}"
-    return str(value)
-
-
-@dataclass
-class Reproduction:
-    """The outcome of ``railpilot reproduce NAME``.
-
-    ``payload`` is the exact object ``--json`` prints; ``tables`` and ``figures``
-    (paths inside the output folder) make up the paper's section of the report,
-    ``findings`` are short honest sentences about what the numbers show.
-    """
-
-    scenario: str
-    title: str
-    payload: dict[str, Any]
-    tables: list[Table] = field(default_factory=list)
-    figures: list[Path] = field(default_factory=list)
-    findings: list[str] = field(default_factory=list)
+__all__ = ["Reproduction", "Table", "find_example"]
 
 
 def find_example(name: str) -> Path:

@@ -1,4 +1,4 @@
-"""The dispatcher's dashboard on a live ground, in a browser, for the report (issue 11).
+"""The dispatcher's dashboard on a live ground, in a browser, for the report.
 
 A real ground in this process: the link server, its dispatch application and the dashboard
 on 127.0.0.1. 24 onboard endpoints connect to it over TCP and report from simple runs
@@ -48,10 +48,8 @@ LENGTH_M = 1500.0
 def run(out_dir: Path) -> Reproduction:
     """Write ``dashboard.png`` into ``out_dir`` (or say why not)."""
     out_dir.mkdir(parents=True, exist_ok=True)
-    from railpilot.web.browser import CHROMIUM
-
     title = f"The dispatcher's dashboard on a live ground ({TRAINS} trains over TCP)"
-    missing = _missing(CHROMIUM)
+    missing = _missing()
     if missing:
         return Reproduction(
             "dashboard",
@@ -76,7 +74,19 @@ def run(out_dir: Path) -> Reproduction:
     )
 
 
-def _missing(chromium: Path) -> str:
+def _missing() -> str:
+    """Why the screenshot cannot be taken here ("" when it can)."""
+    from railpilot.extras import install_hint
+    from railpilot.extras import missing as missing_modules
+
+    absent = missing_modules("web")
+    if absent:
+        return (
+            f"railpilot's 'web' extra is not installed ({', '.join(absent)} missing: "
+            f"{install_hint('web')})"
+        )
+    from railpilot.web.browser import CHROMIUM as chromium
+
     if not chromium.exists():
         return f"Debian's chromium is not installed at {chromium} (apt-get install chromium)"
     try:
@@ -113,10 +123,11 @@ class _Live:
 
 
 async def _ground(live: _Live) -> None:
+    from railpilot.ground.assembly import GroundParts
     from railpilot.line.loader import load_line
     from railpilot.link import GroundConfig, KeyStore, OnboardConfig, TravelDirection
-    from railpilot.net import GroundServer, OnboardClient, Trajectory
-    from railpilot.net.dispatch_host import DispatchHost
+    from railpilot.net import OnboardClient, Trajectory
+    from railpilot.net.ground_app import live_ground
     from railpilot.web.ground_source import ServerSource, serve_dashboard
 
     live.loop = asyncio.get_running_loop()
@@ -125,8 +136,9 @@ async def _ground(live: _Live) -> None:
     runs = _runs()
     for train_id, *_ in runs:  # demo keys, derived, in memory only
         keys.add_key(train_id, 1, hashlib.sha256(b"railpilot-demo-%d" % train_id).digest())
-    server = GroundServer(GroundConfig(ground_id=1), keys)
-    host = live.host = DispatchHost(server, load_line("heavy-haul"))
+    parts = GroundParts(GroundConfig(ground_id=1), load_line("heavy-haul"), keys)
+    host = live.host = live_ground(parts)
+    server = host.server
     dashboard, serving = await serve_dashboard(ServerSource(host), token=live.token)
     _, port = await server.start()
     host.start()

@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.reproduce.base import Reproduction, Table, find_example
+from railpilot.scenario.consist_file import consist_preset
 from railpilot.scenario.consist_scenario import consist_scenario_from_mapping
 from railpilot.scenario.loader import read_toml
 from railpilot.sim.consist_run import (
@@ -31,7 +32,7 @@ from railpilot.sim.consist_run import (
     DriverCommand,
     run_consist,
 )
-from railpilot.vehicle.consist import Consist, consist_preset
+from railpilot.vehicle.consist import Consist
 from railpilot.vehicle.line import Line, Segment
 
 #: level, straight, 80 km/h

@@ -1,4 +1,4 @@
-"""A short day on the heavy-haul line, advised against the baseline (issue 12 item 5).
+"""A short day on the heavy-haul line, advised against the baseline.
 
 The day of ``examples/line_short_day.toml`` (three loaded trains and an empty one, the
 file's dispatcher operations and failures, a radio dead zone and a lossy radio) is
@@ -27,7 +27,7 @@ from typing import Any
 import numpy as np
 
 from railpilot.cosim.knock_on import summary as knock_on_summary
-from railpilot.cosim.line_run import ON_TIME_WITHIN_MIN
+from railpilot.cosim.kpis import KPIS, dig, safety_kpis, safety_phrase
 from railpilot.cosim.scenario import LineScenario
 from railpilot.reproduce.base import Reproduction, Table, find_example
 
@@ -71,9 +71,9 @@ def drive_day(
     ``without`` its event of that number if given."""
     from railpilot.cosim.knock_on import without_event
     from railpilot.cosim.line_run import run_line
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
-    scenario = load_scenario(path)
+    scenario = load_line_scenario(path)
     if without is not None:
         scenario = without_event(scenario, without)
     result = run_line(scenario, advised=advised, until_s=until_s)
@@ -239,21 +239,21 @@ def _total(kpis: dict[str, Any], key: str) -> int:
 
 
 def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "") -> Table:
-    """Paper 001's KPIs of the two runs side by side."""
+    """The two runs side by side: every figure of the KPIs set against the baseline and
+    of the safety KPIs (cosim/kpis.py), then what the trains add up to."""
     rows: list[list[Any]] = []
 
     def row(name: str, a: Any, b: Any) -> None:
         rows.append([name, _dash(a), _dash(b), _difference(a, b)])
 
-    ca, cb = advised["conformity_pct"], baseline["conformity_pct"]
-    row("end-to-end conformity, mean [%]", ca["mean_end_to_end"], cb["mean_end_to_end"])
-    row("|section conformity|, mean [%]", ca["mean_abs_section"], cb["mean_abs_section"])
-    row(
-        "section conformity, max [%]",
-        None if ca["max_section"] is None else round(ca["max_section"], 3),
-        None if cb["max_section"] is None else round(cb["max_section"], 3),
-    )
-    row("net energy [kWh]", _whole(advised["energy_kwh"]), _whole(baseline["energy_kwh"]))
+    for kpi in KPIS:
+        if not (kpi.against_baseline or kpi.safety):
+            continue
+        for figure in kpi.figures:
+            a, b = dig(advised, kpi.path(figure)), dig(baseline, kpi.path(figure))
+            if figure.unit == "kWh":
+                a, b = _whole(a), _whole(b)
+            row(figure.title, a, b)
     row(
         "traction drawn [kWh]",
         _total(advised, "energy_traction_kwh"),
@@ -264,20 +264,6 @@ def kpi_table(advised: dict[str, Any], baseline: dict[str, Any], note: str = "")
         _total(advised, "energy_regenerated_kwh"),
         _total(baseline, "energy_regenerated_kwh"),
     )
-    row(
-        "of the traction, against the air brake [kWh]",
-        _total(advised, "energy_traction_against_air_kwh"),
-        _total(baseline, "energy_traction_against_air_kwh"),
-    )
-    pa, pb = advised["punctuality"], baseline["punctuality"]
-    for minutes in ON_TIME_WITHIN_MIN:
-        key = f"within_{minutes}_min_pct"
-        row(f"punctuality: arrivals within {minutes} min of the timetable [%]", pa[key], pb[key])
-    row("punctuality: arrival delay, mean [s]", pa["mean_delay_s"], pb["mean_delay_s"])
-    row("punctuality: arrival delay, largest [s]", pa["max_delay_s"], pb["max_delay_s"])
-    for key in ("red_signal_stops", "tsr_violations", "target_points_passed", "tsr_applied_twice"):
-        row(key.replace("_", " ").replace("tsr", "TSR"), advised[key], baseline[key])
-    row("overspeeds above the static limits", advised["overspeeds"], baseline["overspeeds"])
     row("trains finished", _finished(advised), _finished(baseline))
     ra, rb = advised.get("retiming"), baseline.get("retiming")
     if ra is not None and rb is not None:
@@ -415,12 +401,9 @@ def findings(advised: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
         f"Trains at their destination by the end of the day: {fa} of {n} advised, "
         f"{fb} of {n} baseline."
     )
-    safety = ("tsr_violations", "target_points_passed", "tsr_applied_twice", "overspeeds")
+    safety = [k.name for k in safety_kpis()]
     if all(kpis[k] == 0 for kpis in (advised, baseline) for k in safety):
-        out.append(
-            "No TSR violation, no target point passed, no TSR applied twice and no overspeed "
-            "above the static limits, in either run."
-        )
+        out.append(f"No {safety_phrase()}, in either run.")
     else:
         counts = ", ".join(
             f"{k.replace('_', ' ')} {advised[k]} advised / {baseline[k]} baseline" for k in safety
@@ -468,13 +451,13 @@ def findings(advised: dict[str, Any], baseline: dict[str, Any]) -> list[str]:
 def run(out_dir: Path, until_s: float | None = None) -> Reproduction:
     """Run the day twice side by side (or up to ``until_s``, for a quick check) and build
     the section; write the time-distance graph and the energy per train."""
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
     from railpilot.report.figure import save_figure
     from railpilot.report.line_plots import energy_by_train, plan_against_run
 
     out_dir.mkdir(parents=True, exist_ok=True)
     path = scenario_path()
-    scenario = load_scenario(path)  # checked here: a bad file fails before the workers start
+    scenario = load_line_scenario(path)  # checked here: a bad file fails before the workers start
     started = time.perf_counter()
     failure = first_failure(scenario)
     advised, baseline, without = drive_all(path, until_s, failure)

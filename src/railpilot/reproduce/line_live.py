@@ -1,4 +1,4 @@
-"""The line live against its co-simulation (issue 12 item 2; docs/line-run.md "Live").
+"""The line live against its co-simulation (docs/line-run.md "Live").
 
 ``examples/line_live_short.toml`` (two loaded trains six minutes apart and an empty one
 the other way, a TSR, a failure, a radio dead zone; an hour) is run twice: co-simulated
@@ -18,6 +18,7 @@ import time
 from pathlib import Path
 from typing import Any
 
+from railpilot.cosim.kpis import safety_kpis, safety_phrase
 from railpilot.reproduce.base import Reproduction, Table, find_example
 
 SCENARIO_FILE = "line_live_short.toml"
@@ -34,12 +35,12 @@ def run(out_dir: Path) -> Reproduction:
     """Co-simulate, then run live with a screenshot into ``out_dir``; build the section."""
     from railpilot.cosim.line_run import run_line
     from railpilot.cosim.live import LiveOptions, run_live
-    from railpilot.cosim.scenario import load_scenario
+    from railpilot.cosim.scenario import load_line_scenario
 
     out_dir.mkdir(parents=True, exist_ok=True)
     path = find_example(SCENARIO_FILE)
     started = time.perf_counter()
-    cosim = run_line(load_scenario(path)).kpis()
+    cosim = run_line(load_line_scenario(path)).kpis()
     shot = out_dir / SCREENSHOT_PNG
     live_started = time.perf_counter()
     live = run_live(
@@ -95,7 +96,8 @@ def train_table(live: dict[str, Any], cosim: dict[str, Any], note: str) -> Table
                 "yes" if ours["finished"] else "no",
             ]
         )
-    for key in ("tsr_violations", "target_points_passed", "tsr_applied_twice", "overspeeds"):
+    for kpi in safety_kpis():
+        key = kpi.name
         rows.append([key.replace("_", " "), "", "", "", "", live[key], cosim[key], ""])
     return Table(
         "Live against co-simulated, per train",
@@ -173,12 +175,9 @@ def findings(live: dict[str, Any], cosim: dict[str, Any], seen: dict[str, Any]) 
             f"Every train's end-to-end conformity within {CONFORMITY_PP:g} percentage point and "
             f"energy within {ENERGY_REL:.0%} of the co-simulation's."
         )
-    safety = [
-        k for k in ("tsr_violations", "target_points_passed", "overspeeds") if live[k] or cosim[k]
-    ]
+    safety = [k.name for k in safety_kpis() if live[k.name] or cosim[k.name]]
     out.append(
-        "No TSR violation, no target point passed and no overspeed above the static limits, "
-        "live or co-simulated."
+        f"No {safety_phrase()}, live or co-simulated."
         if not safety
         else f"Safety KPIs not 0: {', '.join(safety)} (see the table)."
     )

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from railpilot.ground.assembly import GroundParts
 from railpilot.link import (
     AppliedTsr,
     Event,
@@ -40,8 +41,8 @@ from railpilot.link import (
     TsrSet,
 )
 from railpilot.net.client import OnboardClient, Trajectory
+from railpilot.net.ground_app import ground_server
 from railpilot.net.proxy import FaultProxy, ProxyOptions
-from railpilot.net.server import GroundServer
 from railpilot.reproduce.base import Reproduction, Table
 from railpilot.units import kmh_to_mps
 
@@ -117,7 +118,7 @@ async def _scenario(session: int, lossy: bool) -> dict[str, Any]:
     )
     keys = _keys()
     record = _Log()
-    server = GroundServer(GroundConfig(ground_id=GROUND_ID, timers=timers), keys)
+    server = ground_server(GroundParts(GroundConfig(ground_id=GROUND_ID, timers=timers), keys=keys))
     server.add_listener(record.ground)
     _, port = await server.start()
     proxy = None

@@ -1,6 +1,6 @@
 """Precise stopping on a metro and on a heavy-haul train, one gain set per controller.
 
-Issue 10, item 7: a station stop within 0.30 m for the metro train and within 2 m for the
+A station stop within 0.30 m for the metro train and within 2 m for the
 heavy-haul train, with the same gains (tuning rule) for both trains, compared in a Monte
 Carlo over model error (the controller's model of mass, delay and lag is the nominal
 train; the plant varies around it). Three cases:

@@ -44,58 +44,51 @@ import dataclasses
 import functools
 import math
 import os
-import tomllib
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from importlib import resources
 from pathlib import Path
 from typing import Any
 
-from railpilot.errors import ConfigError, ScenarioError, is_finite_number
-from railpilot.textfile import TOO_MANY_DIGITS, read_text
-from railpilot.units import G_MPS2, kn_to_n, tonne_to_kg
-from railpilot.vehicle.consist import (
-    DISTRIBUTORS,
-    MAX_BRAKE_PIPE_KPA,
-    MAX_DAVIS,
-    MAX_DP_DELAY_S,
-    MAX_ROTATING_MASS_FACTOR,
-    MAX_VEHICLE_LENGTH_M,
-    MAX_VEHICLE_MASS_KG,
-    Consist,
-    Vehicle,
+from railpilot.errors import ConfigError, ScenarioError
+from railpilot.schema.consist import (
+    LOADS,
+    LOCOMOTIVE_MODELS,
+    MAX_GEAR_KN,
+    MAX_MASS_T,
+    MAX_VEHICLES,
+    BlockTable,
+    ConsistFileTable,
+    ConsistLibraryTable,
+    DraftGearTable,
+    LoadTable,
+    LocomotiveTypeTable,
+    WagonTypeTable,
 )
+from railpilot.schema.fields import number_words
+from railpilot.schema.reading import parse_text, read_document
+from railpilot.schema.validate import Loc, check, dotted
+from railpilot.units import G_MPS2, kn_to_n, tonne_to_kg
+from railpilot.vehicle.consist import CONSIST_PRESETS, PRESET_FILES, Consist, Vehicle
 from railpilot.vehicle.coupler import DraftGear
-from railpilot.vehicle.traction import Locomotive, hxd1_locomotive
+from railpilot.vehicle.traction import Locomotive
 from railpilot.vehicle.train import MAX_LENGTH_M
 
-#: locomotive models a type may name: name -> factory (traction and regeneration envelopes)
-LOCOMOTIVE_MODELS: dict[str, Callable[[], Locomotive]] = {"HXD1": hxd1_locomotive}
-#: the loads a wagon block may run at
-LOADS = ("loaded", "empty")
+__all__ = [
+    "LOCOMOTIVE_MODELS",
+    "ConsistError",
+    "consist_to_mapping",
+    "consist_to_toml",
+    "library_draft_gears",
+    "library_types",
+    "load_consist",
+    "load_shipped_consist",
+    "parse_consist",
+    "write_consist",
+]
+
 #: the library of types and draft gears, in railpilot/vehicle/data/consists/
 LIBRARY_FILE = "library.toml"
-
-#: most vehicles in one consist (a 10 km train of 1 m vehicles)
-MAX_VEHICLES = 10_000
-#: heaviest vehicle [t] and longest [m] a file may give (the model's own bounds)
-MAX_MASS_T = MAX_VEHICLE_MASS_KG / 1000.0
-#: largest net braking ratio (shoe force over weight) [-]
-MAX_BRAKING_RATIO = 2.0
-#: largest draft-gear slack and travel [mm] (DraftGear allows up to 1 m)
-MAX_GEAR_MM = 1000.0
-
-TOP_KEYS = ("name", "description", "brake_pipe_kpa", "dp_radio_delay_s", "train",
-            "vehicle_types", "draft_gears")  # fmt: skip
-BLOCK_KEYS = ("type", "count", "load", "mass_t", "draft_gear", "name")
-COMMON_TYPE_KEYS = ("kind", "length_m", "rotating_mass_t", "rotating_mass_factor",
-                    "distributor", "draft_gear", "shoe_friction")  # fmt: skip
-WAGON_KEYS = (*COMMON_TYPE_KEYS, "tare_t", "payload_t", "loaded", "empty")
-LOCOMOTIVE_KEYS = (*COMMON_TYPE_KEYS, "model", "mass_t", "davis", "brake_force_kn",
-                   "braking_ratio")  # fmt: skip
-LOAD_KEYS = ("davis", "brake_force_kn", "braking_ratio")
-GEAR_KEYS = ("slack_mm", "travel_mm", "preload_kn", "force_at_travel_kn", "unloading_ratio",
-             "stop_stiffness_kn_per_mm", "damping_kn_s_per_m", "switching_speed_mps")  # fmt: skip
 
 
 class ConsistError(ScenarioError):
@@ -110,132 +103,55 @@ class ConsistError(ScenarioError):
             self.args = (f"{source}: {self.args[0]}",)
 
 
-# --- reading one table ----------------------------------------------------------------
-
-
-class _Table:
-    """One TOML table being read: its label for errors, its allowed keys, typed getters."""
-
-    def __init__(self, data: Any, label: str, allowed: tuple[str, ...]) -> None:
-        if not isinstance(data, Mapping):
-            raise ConsistError(label or "<file>", data, f"a table with keys {', '.join(allowed)}")
-        self.data = data
-        self.label = label
-        self.allowed = allowed
-
-    def key(self, key: str) -> str:
-        return f"{self.label}.{key}" if self.label else key
-
-    def check_keys(self) -> None:
-        """Refuse a key the format does not know here, listing the ones it does."""
-        for key in self.data:
-            if key not in self.allowed:
-                raise ConsistError(
-                    self.key(key),
-                    self.data[key],
-                    f"a known key instead of '{key}' (allowed here: {', '.join(self.allowed)})",
-                )
-
-    def has(self, key: str) -> bool:
-        return key in self.data
-
-    def number(
-        self,
-        key: str,
-        default: float | None = None,
-        *,
-        gt: float | None = None,
-        ge: float | None = None,
-        le: float | None = None,
-        unit: str = "",
-    ) -> float:
-        """A finite number within the bounds (in the file's unit); ``default`` when the key
-        is absent (None: the key is required)."""
-        if key not in self.data:
-            if default is None:
-                raise ConsistError(self.key(key), None, "a number (the key is required)")
-            return default
-        value = self.data[key]
-        bounds = [f"{op} {b:g}" for op, b in ((">", gt), (">=", ge), ("<=", le)) if b is not None]
-        allowed = "a finite number" + (" " + " and ".join(bounds) if bounds else "")
-        allowed += f" [{unit}]" if unit else ""
-        if not is_finite_number(value):  # nan, inf, a bool, a string, 10**400
-            raise ConsistError(self.key(key), value, allowed)
+def _block_label(index: int, raw: Any) -> str:
+    """``train[2] (C80 x 105)``: a block named by its place, type and count, as far as the
+    file gives them readably."""
+    if isinstance(raw, Mapping):
+        kind, count = raw.get("type"), raw.get("count")
+        readable = isinstance(kind, str) and len(kind) <= 40
         if (
-            (gt is not None and not value > gt)
-            or (ge is not None and not value >= ge)
-            or (le is not None and not value <= le)
+            readable
+            and isinstance(count, int)
+            and not isinstance(count, bool)
+            and abs(count) < 10**9
         ):
-            raise ConsistError(self.key(key), value, allowed)
-        return float(value)
-
-    def integer(self, key: str, low: int, high: int) -> int:
-        value = self.data.get(key)
-        if isinstance(value, bool) or not isinstance(value, int) or not low <= value <= high:
-            raise ConsistError(
-                self.key(key), value, f"a whole number from {low} to {high} (the key is required)"
-            )
-        return value
-
-    def string(self, key: str, default: str | None = None) -> str:
-        if key not in self.data and default is not None:
-            return default
-        value = self.data.get(key)
-        if not isinstance(value, str) or not value:
-            raise ConsistError(self.key(key), value, "a non-empty string (the key is required)")
-        return value
-
-    def choice(self, key: str, choices: tuple[str, ...], default: str | None = None) -> str:
-        value = self.data.get(key, default)
-        if not (isinstance(value, str) and value in choices):
-            raise ConsistError(self.key(key), value, f"one of {', '.join(choices)}")
-        return value
-
-    def davis(self, key: str = "davis") -> tuple[float, float, float]:
-        """``[a0, a1, a2]`` [N/kN, v in km/h], each in [0, MAX_DAVIS] (required)."""
-        value = self.data.get(key)
-        if not isinstance(value, list) or len(value) != 3:
-            raise ConsistError(
-                self.key(key), value, "a list of 3 numbers [a0, a1, a2] (N/kN, v in km/h)"
-            )
-        for i, item in enumerate(value):
-            if not is_finite_number(item) or not 0.0 <= item <= MAX_DAVIS:
-                raise ConsistError(
-                    f"{self.key(key)}[{i}]", item, f"a finite number >= 0 and <= {MAX_DAVIS:g}"
-                )
-        return (float(value[0]), float(value[1]), float(value[2]))
+            return f"train[{index}] ({kind} x {count})"
+    return f"train[{index}]"
 
 
-def _names(data: Mapping[str, Any], key: str) -> Mapping[str, Any]:
-    """The table of named sub-tables ``key`` (``vehicle_types``, ``draft_gears``)."""
-    value = data.get(key, {})
-    if not isinstance(value, Mapping):
-        raise ConsistError(key, value, "a table of named tables")
-    return value
+def _place(loc: Loc, data: Any) -> str:
+    """A key's place as the errors write it: a train block by its label."""
+    if len(loc) >= 2 and loc[0] == "train" and isinstance(loc[1], int):
+        blocks = data.get("train") if isinstance(data, Mapping) else None
+        raw = blocks[loc[1]] if isinstance(blocks, list) and loc[1] < len(blocks) else None
+        rest = dotted(loc[2:])
+        label = _block_label(loc[1], raw)
+        return f"{label}.{rest}" if rest else label
+    return dotted(loc)
 
 
 # --- draft gears ----------------------------------------------------------------------
 
 
-def _draft_gear(name: str, raw: Any) -> DraftGear:
-    t = _Table(raw, f"draft_gears.{name}", GEAR_KEYS)
-    t.check_keys()
-    preload_kn = t.number("preload_kn", ge=0.0, le=1e6, unit="kN")
-    gear = DraftGear(
+def _draft_gear(name: str, t: DraftGearTable) -> DraftGear:
+    floor_kn = max(t.preload_kn, 1e-9)
+    if not t.force_at_travel_kn >= floor_kn:
+        raise ConsistError(
+            f"draft_gears.{name}.force_at_travel_kn",
+            t.force_at_travel_kn,
+            number_words(ge=floor_kn, le=MAX_GEAR_KN, unit="kN"),
+        )
+    return DraftGear(
         name=name,
-        slack_m=t.number("slack_mm", ge=0.0, le=MAX_GEAR_MM, unit="mm") / 1000.0,
-        travel_m=t.number("travel_mm", gt=0.0, le=MAX_GEAR_MM, unit="mm") / 1000.0,
-        preload_n=kn_to_n(preload_kn),
-        force_at_travel_n=kn_to_n(
-            t.number("force_at_travel_kn", ge=max(preload_kn, 1e-9), le=1e6, unit="kN")
-        ),
-        unloading_ratio=t.number("unloading_ratio", gt=0.0, le=1.0),
-        stop_stiffness_n_per_m=t.number("stop_stiffness_kn_per_mm", gt=0.0, le=1e9, unit="kN/mm")
-        * 1e6,
-        damping_n_s_per_m=kn_to_n(t.number("damping_kn_s_per_m", ge=0.0, le=1e9, unit="kN s/m")),
-        switching_speed_mps=t.number("switching_speed_mps", 0.01, gt=0.0, le=10.0, unit="m/s"),
+        slack_m=t.slack_mm / 1000.0,
+        travel_m=t.travel_mm / 1000.0,
+        preload_n=kn_to_n(t.preload_kn),
+        force_at_travel_n=kn_to_n(t.force_at_travel_kn),
+        unloading_ratio=t.unloading_ratio,
+        stop_stiffness_n_per_m=t.stop_stiffness_kn_per_mm * 1e6,
+        damping_n_s_per_m=kn_to_n(t.damping_kn_s_per_m),
+        switching_speed_mps=t.switching_speed_mps,
     )
-    return gear
 
 
 # --- vehicle types --------------------------------------------------------------------
@@ -273,109 +189,111 @@ class _VehicleType:
     locomotive: Locomotive | None
 
 
-def _brake(t: _Table, distributor: str, shoe_friction: float | None) -> tuple[
-    float | None, float | None
-]:  # fmt: skip
-    """``(brake_force_n, braking_ratio)`` of a table giving at most one of the two keys."""
-    if t.has("brake_force_kn") and t.has("braking_ratio"):
+def _load(
+    label: str,
+    t: LoadTable | LocomotiveTypeTable,
+    mass_kg: float,
+    distributor: str,
+    shoe_friction: float | None,
+) -> _LoadSpec:
+    """A load's mass, Davis and brake (``brake_force_kn`` or ``braking_ratio``, at most
+    one; some unless the type has no air brake)."""
+    if t.given("brake_force_kn") and t.given("braking_ratio"):
         raise ConsistError(
-            t.key("braking_ratio"),
-            t.data["braking_ratio"],
+            f"{label}.braking_ratio",
+            t.braking_ratio,
             "no braking_ratio when brake_force_kn is given (one or the other)",
         )
-    force = ratio = None
-    if t.has("brake_force_kn"):
-        force = kn_to_n(t.number("brake_force_kn", ge=0.0, le=MAX_MASS_T * 10.0, unit="kN"))
-    elif t.has("braking_ratio"):
-        ratio = t.number("braking_ratio", ge=0.0, le=MAX_BRAKING_RATIO)
-        if shoe_friction is None:
-            raise ConsistError(
-                t.key("braking_ratio"),
-                ratio,
-                "a type that gives shoe_friction too (the force is ratio x friction x weight)",
-            )
+    force = kn_to_n(t.brake_force_kn) if t.given("brake_force_kn") else None
+    ratio = t.braking_ratio if t.given("braking_ratio") else None
+    if ratio is not None and shoe_friction is None:
+        raise ConsistError(
+            f"{label}.braking_ratio",
+            ratio,
+            "a type that gives shoe_friction too (the force is ratio x friction x weight)",
+        )
     if distributor == "none" and ((force or 0.0) > 0.0 or (ratio or 0.0) > 0.0):
         key = "brake_force_kn" if force is not None else "braking_ratio"
         raise ConsistError(
-            t.key(key), t.data[key], "0 or no key: the type has no air brake (distributor 'none')"
+            f"{label}.{key}",
+            getattr(t, key),
+            "0 or no key: the type has no air brake (distributor 'none')",
         )
     if distributor != "none" and force is None and ratio is None:
         raise ConsistError(
-            t.key("brake_force_kn"),
+            f"{label}.brake_force_kn",
             None,
             "brake_force_kn or braking_ratio: the type has an air brake "
             f"(distributor {distributor!r})",
         )
-    return force, ratio
+    davis = (float(t.davis[0]), float(t.davis[1]), float(t.davis[2]))
+    return _LoadSpec(mass_kg, davis, force, ratio)
 
 
-def _gear_ref(t: _Table, key: str, gears: Mapping[str, DraftGear]) -> DraftGear:
-    name = t.data.get(key)
-    if not isinstance(name, str) or name not in gears:
+def _gear_ref(field: str, name: str, gears: Mapping[str, DraftGear]) -> DraftGear:
+    if name not in gears:
         raise ConsistError(
-            t.key(key), name, f"a draft gear of the file or the library ({', '.join(gears)})"
+            field, name, f"a draft gear of the file or the library ({', '.join(gears)})"
         )
     return gears[name]
 
 
-def _vehicle_type(name: str, raw: Any, gears: Mapping[str, DraftGear]) -> _VehicleType:
+def _vehicle_type(
+    name: str, t: WagonTypeTable | LocomotiveTypeTable, gears: Mapping[str, DraftGear]
+) -> _VehicleType:
     label = f"vehicle_types.{name}"
-    probe = _Table(raw, label, WAGON_KEYS)
-    kind = probe.choice("kind", ("locomotive", "wagon"))
-    t = _Table(raw, label, WAGON_KEYS if kind == "wagon" else LOCOMOTIVE_KEYS)
-    t.check_keys()
-    distributor = t.choice("distributor", DISTRIBUTORS)
-    shoe_friction = t.number("shoe_friction", gt=0.0, le=1.0) if t.has("shoe_friction") else None
-    if t.has("rotating_mass_t") == t.has("rotating_mass_factor"):
+    shoe_friction = t.shoe_friction if t.given("shoe_friction") else None
+    if t.given("rotating_mass_t") == t.given("rotating_mass_factor"):
         raise ConsistError(
-            t.key("rotating_mass_t"),
-            t.data.get("rotating_mass_t"),
+            f"{label}.rotating_mass_t",
+            t.rotating_mass_t,
             "exactly one of rotating_mass_t (equivalent mass of the rotating parts) and "
             "rotating_mass_factor (gamma)",
         )
-    rotating_kg = factor = None
-    if t.has("rotating_mass_t"):
-        rotating_kg = tonne_to_kg(t.number("rotating_mass_t", ge=0.0, le=MAX_MASS_T, unit="t"))
-    else:
-        factor = t.number("rotating_mass_factor", ge=0.0, le=MAX_ROTATING_MASS_FACTOR)
-    draft_gear = _gear_ref(t, "draft_gear", gears)
+    rotating_kg = tonne_to_kg(t.rotating_mass_t) if t.given("rotating_mass_t") else None
+    factor = t.rotating_mass_factor if t.given("rotating_mass_factor") else None
+    draft_gear = _gear_ref(f"{label}.draft_gear", t.draft_gear, gears)
     locomotive: Locomotive | None = None
     loads: dict[str, _LoadSpec] = {}
-    if kind == "wagon":
-        tare_t = t.number("tare_t", gt=0.0, le=MAX_MASS_T, unit="t")
-        payload_t = t.number("payload_t", ge=0.0, le=MAX_MASS_T - tare_t, unit="t")
-        length_m = t.number("length_m", gt=0.0, le=MAX_VEHICLE_LENGTH_M, unit="m")
-        for load, mass_t in (("loaded", tare_t + payload_t), ("empty", tare_t)):
-            sub = _Table(t.data.get(load), t.key(load), LOAD_KEYS)
-            sub.check_keys()
-            force, ratio = _brake(sub, distributor, shoe_friction)
-            loads[load] = _LoadSpec(tonne_to_kg(mass_t), sub.davis(), force, ratio)
+    if isinstance(t, WagonTypeTable):
+        if not t.payload_t <= MAX_MASS_T - t.tare_t:
+            raise ConsistError(
+                f"{label}.payload_t",
+                t.payload_t,
+                number_words(ge=0.0, le=MAX_MASS_T - t.tare_t, unit="t"),
+            )
+        length_m = t.length_m
+        for load, mass_t, table in (
+            ("loaded", t.tare_t + t.payload_t, t.loaded),
+            ("empty", t.tare_t, t.empty),
+        ):
+            loads[load] = _load(
+                f"{label}.{load}", table, tonne_to_kg(mass_t), t.distributor, shoe_friction
+            )
     else:
-        model = t.choice("model", tuple(LOCOMOTIVE_MODELS))
-        base = LOCOMOTIVE_MODELS[model]()
-        mass_t = t.number("mass_t", base.mass_kg / 1000.0, gt=0.0, le=MAX_MASS_T, unit="t")
-        length_m = t.number("length_m", base.length_m, gt=0.0, le=MAX_VEHICLE_LENGTH_M, unit="m")
+        base = LOCOMOTIVE_MODELS[t.model]()
+        mass_t = t.mass_t if t.given("mass_t") else base.mass_kg / 1000.0
+        length_m = t.length_m if t.given("length_m") else base.length_m
         locomotive = dataclasses.replace(base, mass_kg=tonne_to_kg(mass_t), length_m=length_m)
-        force, ratio = _brake(t, distributor, shoe_friction)
-        loads[""] = _LoadSpec(tonne_to_kg(mass_t), t.davis(), force, ratio)
+        loads[""] = _load(label, t, tonne_to_kg(mass_t), t.distributor, shoe_friction)
     return _VehicleType(
-        name, kind, length_m, rotating_kg, factor, distributor, draft_gear, shoe_friction,
+        name, t.kind, length_m, rotating_kg, factor, t.distributor, draft_gear, shoe_friction,
         loads, locomotive,
     )  # fmt: skip
 
 
 def _types_and_gears(
-    data: Mapping[str, Any],
+    table: ConsistFileTable | ConsistLibraryTable,
     base_types: Mapping[str, _VehicleType],
     base_gears: Mapping[str, DraftGear],
 ) -> tuple[dict[str, _VehicleType], dict[str, DraftGear]]:
     """The file's draft gears and vehicle types over the library's (the file's win)."""
     gears = dict(base_gears)
-    for name, raw in _names(data, "draft_gears").items():
-        gears[name] = _draft_gear(name, raw)
+    for name, gear in table.draft_gears.items():
+        gears[name] = _draft_gear(name, gear)
     types = dict(base_types)
-    for name, raw in _names(data, "vehicle_types").items():
-        types[name] = _vehicle_type(name, raw, gears)
+    for name, vtype in table.vehicle_types.items():
+        types[name] = _vehicle_type(name, vtype, gears)
     return types, gears
 
 
@@ -385,9 +303,13 @@ def _library() -> tuple[Mapping[str, _VehicleType], Mapping[str, DraftGear]]:
     resource = resources.files("railpilot.vehicle") / "data" / "consists" / LIBRARY_FILE
     source = "consist library"
     data = _parse_toml(resource.read_text(encoding="utf-8"), source)
+
+    def error(field: str, value: Any, allowed: str) -> ConsistError:
+        return ConsistError(field, value, allowed, source=source)
+
+    table = check(ConsistLibraryTable, data, error)
     try:
-        _Table(data, "", ("vehicle_types", "draft_gears")).check_keys()
-        return _types_and_gears(data, {}, {})
+        return _types_and_gears(table, {}, {})
     except ConsistError as exc:
         raise ConsistError(exc.field, exc.value, exc.allowed, source=source) from exc
 
@@ -414,20 +336,6 @@ _FILE_KEYS: dict[str, tuple[str, Callable[[Any], Any]]] = {
 }
 
 
-def _block_label(index: int, raw: Any) -> str:
-    if isinstance(raw, Mapping):
-        kind, count = raw.get("type"), raw.get("count")
-        readable = isinstance(kind, str) and len(kind) <= 40
-        if (
-            readable
-            and isinstance(count, int)
-            and not isinstance(count, bool)
-            and abs(count) < 10**9
-        ):
-            return f"train[{index}] ({kind} x {count})"
-    return f"train[{index}]"
-
-
 @dataclass(frozen=True)
 class _Block:
     label: str
@@ -440,34 +348,39 @@ class _Block:
 
 
 def _block(
-    index: int, raw: Any, types: Mapping[str, _VehicleType], gears: Mapping[str, DraftGear]
+    index: int,
+    label: str,
+    t: BlockTable,
+    types: Mapping[str, _VehicleType],
+    gears: Mapping[str, DraftGear],
 ) -> _Block:
-    t = _Table(raw, _block_label(index, raw), BLOCK_KEYS)
-    t.check_keys()
-    name = t.data.get("type")
-    if not isinstance(name, str) or name not in types:
+    if t.type not in types:
         raise ConsistError(
-            t.key("type"), name, f"a vehicle type of the file or the library ({', '.join(types)})"
+            f"{label}.type",
+            t.type,
+            f"a vehicle type of the file or the library ({', '.join(types)})",
         )
-    vtype = types[name]
-    count = t.integer("count", 1, MAX_VEHICLES)
+    vtype = types[t.type]
     if vtype.kind == "wagon":
-        load = t.choice("load", LOADS)
-    elif t.has("load"):
-        raise ConsistError(t.key("load"), t.data["load"], "no load: a locomotive's type")
+        if not t.given("load"):
+            raise ConsistError(f"{label}.load", None, f"one of {', '.join(LOADS)}")
+        load = t.load
+    elif t.given("load"):
+        raise ConsistError(f"{label}.load", t.load, "no load: a locomotive's type")
     else:
         load = ""
-    mass_kg = (
-        tonne_to_kg(t.number("mass_t", gt=0.0, le=MAX_MASS_T, unit="t"))
-        if t.has("mass_t")
-        else None
+    mass_kg = tonne_to_kg(t.mass_t) if t.given("mass_t") else None
+    gear = (
+        _gear_ref(f"{label}.draft_gear", t.draft_gear, gears)
+        if t.given("draft_gear")
+        else vtype.draft_gear
     )
-    gear = _gear_ref(t, "draft_gear", gears) if t.has("draft_gear") else vtype.draft_gear
     if index == 0 and vtype.kind != "locomotive":
         raise ConsistError(
-            t.key("type"), name, "a locomotive type: the first vehicle is the lead locomotive"
+            f"{label}.type", t.type, "a locomotive type: the first vehicle is the lead locomotive"
         )
-    return _Block(t.label, vtype, count, load, mass_kg, gear, t.string("name", vtype.name))
+    prefix = t.name if t.given("name") else vtype.name
+    return _Block(label, vtype, t.count, load, mass_kg, gear, prefix)
 
 
 def _vehicle(block: _Block, name: str, remote: bool) -> Vehicle:
@@ -529,27 +442,17 @@ def parse_consist(data: Mapping[str, Any], source: str = "<consist>") -> Consist
     ConsistError
         Naming ``source``, the entry and key, the value and what is allowed.
     """
+
+    def error(field: str, value: Any, allowed: str) -> ConsistError:
+        return ConsistError(field, value, allowed, source=source)
+
+    top = check(ConsistFileTable, data, error, name=_place)
     try:
-        top = _Table(data, "", TOP_KEYS)
-        top.check_keys()
-        name = top.string("name")
-        if top.has("description") and not isinstance(data["description"], str):
-            raise ConsistError("description", data["description"], "a string")
-        pipe_kpa = top.number(
-            "brake_pipe_kpa", _default("brake_pipe_kpa"), gt=0.0, le=MAX_BRAKE_PIPE_KPA, unit="kPa"
-        )
-        delay_s = top.number(
-            "dp_radio_delay_s", _default("dp_radio_delay_s"), ge=0.0, le=MAX_DP_DELAY_S, unit="s"
-        )
-        types, gears = _types_and_gears(data, *_library())
-        raw_blocks = data.get("train")
-        if not isinstance(raw_blocks, list) or not raw_blocks:
-            raise ConsistError(
-                "train",
-                raw_blocks,
-                "a non-empty list of [[train]] blocks from the head, the first a locomotive",
-            )
-        blocks = [_block(i, raw, types, gears) for i, raw in enumerate(raw_blocks)]
+        types, gears = _types_and_gears(top, *_library())
+        blocks = [
+            _block(i, _block_label(i, raw), block, types, gears)
+            for i, (raw, block) in enumerate(zip(data["train"], top.train, strict=True))
+        ]
         count = sum(b.count for b in blocks)
         if count > MAX_VEHICLES:
             raise ConsistError("train", f"{count} vehicles", f"at most {MAX_VEHICLES} vehicles")
@@ -562,7 +465,12 @@ def parse_consist(data: Mapping[str, Any], source: str = "<consist>") -> Consist
             )
         vehicles = _vehicles(blocks)
         try:
-            return Consist(name, vehicles, brake_pipe_kpa=pipe_kpa, dp_radio_delay_s=delay_s)
+            return Consist(
+                top.name,
+                vehicles,
+                brake_pipe_kpa=top.brake_pipe_kpa,
+                dp_radio_delay_s=top.dp_radio_delay_s,
+            )
         except ConfigError as exc:  # every part was checked: a rule across vehicles
             raise ConsistError(exc.field, exc.value, exc.allowed) from exc
     except ConsistError as exc:
@@ -571,35 +479,52 @@ def parse_consist(data: Mapping[str, Any], source: str = "<consist>") -> Consist
         raise ConsistError(exc.field, exc.value, exc.allowed, source=source) from exc
 
 
-def _default(field: str) -> float:
-    """The default of a Consist field: defaults are written once, in the dataclass."""
-    default = next(f for f in dataclasses.fields(Consist) if f.name == field).default
-    assert isinstance(default, float)
-    return default
+def _parse_toml(text: str, source: str) -> Any:
+    def error(field: str, value: Any, allowed: str) -> ConsistError:
+        return ConsistError(field, value, allowed, source=source)
 
-
-def _parse_toml(text: str, source: str) -> dict[str, Any]:
-    try:
-        return tomllib.loads(text)
-    except tomllib.TOMLDecodeError as exc:
-        raise ConsistError("CONSIST", source, f"valid TOML ({exc})", source=source) from None
-    except ValueError:  # tomllib's int() of a literal past Python's digit limit
-        raise ConsistError(
-            "CONSIST", source, f"valid TOML ({TOO_MANY_DIGITS})", source=source
-        ) from None
+    return parse_text(text, source, "CONSIST", error)
 
 
 def load_consist(path: str | os.PathLike[str]) -> Consist:
-    """Read the consist file at ``path`` (errors name the file)."""
+    """Read the consist file at ``path`` (TOML, or JSON if its name ends in ``.json``;
+    errors name the file)."""
     file = Path(path)
-    text = read_text(file, "CONSIST", "consist TOML file", ConsistError)
-    return parse_consist(_parse_toml(text, str(file)), source=str(file))
+
+    def error(field: str, value: Any, allowed: str) -> ConsistError:
+        return ConsistError(field, value, allowed, source=str(file))
+
+    data = read_document(file, "CONSIST", "consist TOML file", ConsistError, parse_error=error)
+    return parse_consist(data, source=str(file))
 
 
 def load_shipped_consist(filename: str, source: str) -> Consist:
     """A consist file shipped in ``railpilot/vehicle/data/consists/`` (the presets)."""
     resource = resources.files("railpilot.vehicle") / "data" / "consists" / filename
     return parse_consist(_parse_toml(resource.read_text(encoding="utf-8"), source), source)
+
+
+def consist_preset(name: str) -> Consist:
+    """A shipped consist by name (:data:`CONSIST_PRESETS`).
+
+    ``"heavy-haul-10kt"``: one HXD1 and 105 loaded C80 coal wagons;
+    ``"heavy-haul-10kt-empty"``: the same train empty; ``"heavy-haul-20kt-dp"``: the
+    Daqin 20,000 t combined train, an HXD1 at the head and one (a distributed-power remote)
+    after wagon 105, 210 loaded C80 in all. Numbers and sources: docs/consist.md.
+
+    Raises
+    ------
+    ConfigError
+        Naming the allowed names, for any other.
+    """
+    if not isinstance(name, str) or name not in PRESET_FILES:
+        raise ConfigError("consist", name, f"one of {', '.join(CONSIST_PRESETS)}")
+    return _preset(name)
+
+
+@functools.cache
+def _preset(name: str) -> Consist:
+    return load_shipped_consist(PRESET_FILES[name], f"consist '{name}'")
 
 
 # --- writing --------------------------------------------------------------------------

@@ -3,8 +3,9 @@
 The file names its consist (a shipped preset or a consist file, docs/consist.md), gives
 the line as every scenario file does (``[line]``), the air brake's parameters
 (``[air]``), the run's settings (``[sim]``) and the driver (``[driver]`` and its
-``[[driver.commands]]``). Every key and its meaning: docs/consist-run.md. Errors name the
-key as written, the value and what is allowed (railpilot.errors.ScenarioError).
+``[[driver.commands]]``). Every key and its meaning: docs/consist-run.md; its JSON Schema:
+``railpilot schema train-dynamics``. Errors name the key as written, the value and what is
+allowed (railpilot.errors.ScenarioError).
 """
 
 from __future__ import annotations
@@ -15,8 +16,17 @@ from typing import Any
 
 from railpilot.brakes.freight_air import FreightAirBrake
 from railpilot.errors import ScenarioError
-from railpilot.scenario.consist_file import load_consist
-from railpilot.scenario.loader import _build, _line, _nested_config, _Table
+from railpilot.scenario.consist_file import consist_preset, load_consist
+from railpilot.scenario.loader import _build, line_from_table
+from railpilot.schema.config import ConfigTable, config_kwargs, given_values
+from railpilot.schema.consist_run import (
+    KIND,
+    ConsistRunFileTable,
+    ConsistSimTable,
+    DriverCommandTable,
+    DriverTable,
+)
+from railpilot.schema.validate import check
 from railpilot.sim.consist_run import (
     ConsistDriver,
     ConsistRunSettings,
@@ -24,13 +34,12 @@ from railpilot.sim.consist_run import (
     DriverCommand,
 )
 from railpilot.units import km_post_to_m
-from railpilot.vehicle.consist import CONSIST_PRESETS, Consist, consist_preset
+from railpilot.vehicle.consist import CONSIST_PRESETS, Consist
 
-KIND = "train-dynamics"
+__all__ = ["KIND", "consist_scenario_from_mapping"]
 
 
-def _consist(top: _Table, base_dir: Path) -> Consist:
-    name = top.string("consist", CONSIST_PRESETS[0])
+def _consist(name: str, base_dir: Path) -> Consist:
     if name in CONSIST_PRESETS:
         return consist_preset(name)
     path = Path(name)
@@ -43,57 +52,55 @@ def _consist(top: _Table, base_dir: Path) -> Consist:
     return load_consist(path)
 
 
-def _sim(t: _Table) -> ConsistRunSettings:
-    kw: dict[str, Any] = {}
-    t.put(kw, "dt_s", "dt_s", gt=0)
-    t.put(kw, "duration_s", "duration_s", gt=0)
-    t.put(kw, "record_every_s", "record_every_s", gt=0)
-    t.put(kw, "distributed_power", "distributed_power", read="flag")
-    t.put(
-        kw,
+def _sim(t: ConsistSimTable) -> ConsistRunSettings:
+    kw = given_values(
+        t,
+        "dt_s",
+        "duration_s",
+        "record_every_s",
+        "distributed_power",
         "compare_without_distributed_power",
-        "compare_without_distributed_power",
-        read="flag",
+        "coupler_limit_kn",
+        "lump",
+        "start_kmh",
     )
-    t.put(kw, "coupler_limit_kn", "coupler_limit_kn", gt=0)
-    t.put(kw, "lump", "lump", read="integer")
-    t.put(kw, "start_km", "start_m", km_post_to_m)
-    t.put(kw, "start_kmh", "start_kmh", ge=0)
-    sim = _build("sim", lambda: ConsistRunSettings(**kw))
-    t.done()
-    return sim
+    if t.given("start_km"):
+        kw["start_m"] = km_post_to_m(float(t.start_km))
+    return _build("sim", lambda: ConsistRunSettings(**kw))
 
 
-def _command(t: _Table) -> DriverCommand:
-    kw: dict[str, Any] = {}
-    t.put(kw, "at_s", "at_s", ge=0)
-    t.put(kw, "at_km", "at_m", km_post_to_m)
-    t.put(kw, "below_kmh", "below_kmh", ge=0)
-    t.put(kw, "above_kmh", "above_kmh", ge=0)
-    t.put(kw, "effort", "effort", ge=-1, le=1)
-    t.put(kw, "hold_kmh", "hold_kmh", ge=0)
-    t.put(kw, "reduction_kpa", "reduction_kpa", ge=0)
-    t.put(kw, "release", "release", read="flag")
-    t.put(kw, "emergency", "emergency", read="flag")
-    if kw.pop("release", False):
+def _command(index: int, t: DriverCommandTable) -> DriverCommand:
+    path = f"driver.commands[{index}]"
+    kw = given_values(t, "at_s", "below_kmh", "above_kmh", "effort", "hold_kmh", "reduction_kpa")
+    if t.given("at_km"):
+        kw["at_m"] = km_post_to_m(float(t.at_km))
+    if t.given("emergency"):
+        kw["emergency"] = t.emergency
+    if t.given("release") and t.release:
         if "reduction_kpa" in kw:
-            raise ScenarioError(t.key("release"), True, "either release or reduction_kpa")
+            raise ScenarioError(f"{path}.release", True, "either release or reduction_kpa")
         kw["reduction_kpa"] = 0.0
-    command = _build(t.path, lambda: DriverCommand(**kw))
-    t.done()
-    return command
+    return _build(path, lambda: DriverCommand(**kw))
 
 
-def _driver(t: _Table) -> ConsistDriver:
-    kw: dict[str, Any] = {}
-    for name in ("kp", "ki", "apply_above_kmh", "release_below_kmh", "min_release_kmh"):
-        t.put(kw, name, name, ge=0)
-    t.put(kw, "cycle_reduction_kpa", "cycle_reduction_kpa", gt=0)
-    t.put(kw, "end_at_rest", "end_at_rest", read="flag")
-    commands = tuple(_command(item) for item in t.tables("commands"))
-    driver = _build("driver", lambda: ConsistDriver(commands=commands, **kw))
-    t.done()
-    return driver
+def _driver(t: DriverTable) -> ConsistDriver:
+    kw = given_values(
+        t,
+        "kp",
+        "ki",
+        "apply_above_kmh",
+        "release_below_kmh",
+        "min_release_kmh",
+        "cycle_reduction_kpa",
+        "end_at_rest",
+    )
+    commands = tuple(_command(i, command) for i, command in enumerate(t.commands))
+    return _build("driver", lambda: ConsistDriver(commands=commands, **kw))
+
+
+def _air(t: ConfigTable) -> FreightAirBrake:
+    kw = config_kwargs(t, FreightAirBrake, nested=lambda *_: None)
+    return _build("air", lambda: FreightAirBrake(**kw))
 
 
 def consist_scenario_from_mapping(
@@ -101,22 +108,16 @@ def consist_scenario_from_mapping(
 ) -> ConsistScenario:
     """Build and validate a ``train-dynamics`` scenario; a consist file named in it is
     read relative to ``base_dir`` (the scenario file's folder)."""
-    top = _Table(data, "")
-    top.string("kind", KIND, (KIND,))
-    if not top.has("name"):
-        raise ScenarioError("name", None, "a scenario name (the key is required)")
-    name = top.string("name", "")
-    consist = _consist(top, Path(base_dir))
-    line = _line(top.table("line"))
-    air_table = top.table("air")
-    if air_table.has("charged_kpa"):
+    air = data.get("air") if isinstance(data, Mapping) else None
+    if isinstance(air, Mapping) and "charged_kpa" in air:
         raise ScenarioError(
             "air.charged_kpa",
-            air_table.raw("charged_kpa"),
+            air["charged_kpa"],
             "no such key here: the pipe is charged to the consist's brake_pipe_kpa",
         )
-    air = _nested_config(air_table, FreightAirBrake)
-    sim = _sim(top.table("sim"))
-    driver = _driver(top.table("driver"))
-    top.done()
-    return ConsistScenario(name, consist, line, driver, air, sim)
+    top = check(ConsistRunFileTable, data, ScenarioError)
+    consist = _consist(top.consist, Path(base_dir))
+    line = line_from_table(top.line)
+    return ConsistScenario(
+        top.name, consist, line, _driver(top.driver), _air(top.air), _sim(top.sim)
+    )

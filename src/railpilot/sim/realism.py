@@ -1,4 +1,4 @@
-"""The effects of a real train that set stopping accuracy (issue 4 item 7).
+"""The effects of a real train that set stopping accuracy.
 
 All off by default (the papers' idealised world); each is switched on by a value
 in the scenario's ``[realism]`` table and is used by every controller and every brake

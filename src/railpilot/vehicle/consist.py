@@ -11,9 +11,9 @@ Everything a simulation needs follows from it:
   (:class:`~railpilot.vehicle.train.Train`), so the point-mass and the multi-mass models run
   the same train.
 
-Three presets are shipped (:data:`CONSIST_PRESETS`, :func:`consist_preset`), built from the
-consist files in ``railpilot/vehicle/data/consists/``; :mod:`railpilot.scenario.consist_file`
-reads those and a user's own. docs/consist.md gives every number with its source.
+Three presets are shipped (:data:`CONSIST_PRESETS`), consist files in
+``railpilot/vehicle/data/consists/``; :mod:`railpilot.scenario.consist_file` reads those
+(``consist_preset``) and a user's own. docs/consist.md gives every number with its source.
 
 SI units inside: kg, m, N, s; Davis coefficients are specific resistances [N/kN] of the
 vehicle's own weight with the speed in km/h, as TB/T 1407 (the Chinese traction
@@ -22,7 +22,6 @@ calculation rules) and the rest of railpilot write them.
 
 from __future__ import annotations
 
-import functools
 from dataclasses import dataclass
 from typing import Any
 
@@ -405,33 +404,6 @@ class Consist:
         )
 
 
-def consist_preset(name: str) -> Consist:
-    """A shipped consist by name (:data:`CONSIST_PRESETS`).
-
-    ``"heavy-haul-10kt"``: one HXD1 and 105 loaded C80 coal wagons;
-    ``"heavy-haul-10kt-empty"``: the same train empty; ``"heavy-haul-20kt-dp"``: the
-    Daqin 20,000 t combined train, an HXD1 at the head and one (a distributed-power remote)
-    after wagon 105, 210 loaded C80 in all. Numbers and sources: docs/consist.md.
-
-    Raises
-    ------
-    ConfigError
-        Naming the allowed names, for any other.
-    """
-    if not isinstance(name, str) or name not in PRESET_FILES:
-        raise ConfigError("consist", name, f"one of {', '.join(CONSIST_PRESETS)}")
-    return _preset(name)
-
-
-@functools.cache
-def _preset(name: str) -> Consist:
-    # the reader lives with the other file readers (railpilot.scenario); imported here, at
-    # call time, because it imports this module
-    from railpilot.scenario.consist_file import load_shipped_consist
-
-    return load_shipped_consist(PRESET_FILES[name], f"consist '{name}'")
-
-
 def describe(consist: Consist) -> dict[str, Any]:
     """A short summary of ``consist`` for a report or ``--json``: counts, totals in t and m,
     the locomotives' places and the point-mass figures."""
@@ -464,6 +436,5 @@ __all__ = [
     "KINDS",
     "Consist",
     "Vehicle",
-    "consist_preset",
     "describe",
 ]

@@ -55,7 +55,7 @@ class Segment:
 
 
 @dataclass(frozen=True)
-class Station:
+class StopPoint:
     """A station and the stop point [m] the train's head must stop at."""
 
     name: str
@@ -77,12 +77,12 @@ class Line:
     gradients: tuple[Segment, ...] = ()
     curves: tuple[Segment, ...] = ()
     speed_limits: tuple[Segment, ...] = ()
-    stations: tuple[Station, ...] = field(default_factory=tuple)
+    stations: tuple[StopPoint, ...] = field(default_factory=tuple)
 
     def __post_init__(self) -> None:
         for name in ("gradients", "curves", "speed_limits", "stations"):
             _check_items(
-                f"line.{name}", getattr(self, name), Station if name == "stations" else Segment
+                f"line.{name}", getattr(self, name), StopPoint if name == "stations" else Segment
             )
         for i, seg in enumerate(self.gradients):
             seg.check(f"line.gradients[{i}]")

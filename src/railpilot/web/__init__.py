@@ -4,7 +4,9 @@
   the TSR form's fields are those of the ground's ``tsr_set`` operation (ground/operations.py);
 - :mod:`~railpilot.web.view`: the snapshot's parts from the ground's own objects;
 - :mod:`~railpilot.web.app`: the Starlette app (routes, token, WebSocket pushes);
-- :mod:`~railpilot.web.fake`: a deterministic made-up ground for tests and the demo.
+- :mod:`~railpilot.web.ground_source`: the live ground as the page sees it;
+- the demo ground (:mod:`railpilot.cosim.demo_ground`): the real ground over the simulated
+  radio with scripted trains, for the tests and the demo.
 
 The page itself (static/) is plain SVG and JavaScript, no build step and nothing fetched
 from elsewhere.

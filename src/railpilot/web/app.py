@@ -76,7 +76,7 @@ from starlette.staticfiles import StaticFiles
 from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from railpilot.errors import ConfigError
-from railpilot.heap import collection_paused
+from railpilot.gc_tuning import collection_paused
 
 from .source import DashboardSource
 
@@ -377,7 +377,7 @@ class _SharedSnapshot:
             version = self.source.version()
             t0 = loop.time()
             # The snapshot's containers die young instead of being promoted by the
-            # collections that would run between its slices (railpilot/heap.py).
+            # collections that would run between its slices (railpilot/gc_tuning.py).
             with collection_paused():
                 build = getattr(self.source, "snapshot_async", None)
                 if build is not None:  # a source that yields to the loop while it builds

@@ -34,21 +34,20 @@ import math
 import socket
 from collections import deque
 from collections.abc import Callable, Generator, Mapping
-from typing import Any
+from typing import Any, Protocol
 
 import uvicorn
 
 from railpilot.errors import ConfigError
-from railpilot.ground.dispatch import HISTORY_SAMPLES
+from railpilot.ground.dispatch import HISTORY_SAMPLES, GroundDispatch
 from railpilot.ground.operations import OperationError
 from railpilot.ground.registry import TrainState
 from railpilot.ground.targets import is_clear, restricted_blocks
 from railpilot.ground.tsr_manager import LineTsr
-from railpilot.line.model import DOWN, UP
-from railpilot.link import TsrState
+from railpilot.line.model import DOWN, UP, RailLine
+from railpilot.link import TrainRecord, TsrState
 from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TargetPoint, TravelDirection
-from railpilot.net.dispatch_host import DispatchHost
 from railpilot.onboard.mrsp import SpeedProfile
 
 from . import view
@@ -58,13 +57,48 @@ log = logging.getLogger("railpilot.web.ground_source")
 
 #: Trains per slice of a snapshot built with :meth:`ServerSource.snapshot_async`.
 SLICE = 100
-#: The time-distance graph: how far back and ahead it shows [s] (as the fake).
+#: The time-distance graph: how far back and ahead it shows [s].
 GRAPH_PAST_S = 3600.0
 GRAPH_AHEAD_S = 1200.0
 #: What the dashboard answers before the ground has restored (:meth:`ServerSource.starting`).
 STARTING = "ground starting: restoring from the store"
 #: The delivery states in which a train enforces a TSR (it confirmed it, no cancel yet).
 ENFORCED = (TsrState.ACTIVE, TsrState.PENDING_CANCEL)
+
+
+class _GroundRecords(Protocol):
+    """What the source reads of the ground server: its train records and its clock."""
+
+    @property
+    def records(self) -> dict[int, TrainRecord]: ...
+
+    @property
+    def clock(self) -> Callable[[], float]: ...
+
+
+class DispatchApplication(Protocol):
+    """What the source needs of the ground's dispatch application: a
+    :class:`~railpilot.net.dispatch_host.DispatchHost` on a live server, or the demo
+    ground's over the co-simulation (cosim/demo_ground.py)."""
+
+    @property
+    def line(self) -> RailLine: ...
+
+    @property
+    def server(self) -> _GroundRecords: ...
+
+    @property
+    def dispatch(self) -> GroundDispatch: ...
+
+    @property
+    def restored(self) -> bool: ...
+
+    @property
+    def tick_s(self) -> float: ...
+
+    def sync(self) -> None: ...
+
+    def execute_now(self, op: str, fields: Mapping[str, Any], actor: str) -> dict[str, Any]: ...
 
 
 class ServerSource:
@@ -84,7 +118,7 @@ class ServerSource:
         does not carry it. The page shows it, and the overspeed alarm takes that
         category's static limit. A train not in it is taken as the line's first category
         running UP and its last running DOWN (loaded trains up, empty ones down, as the
-        fake), and shows no category.
+        demo), and shows no category.
 
     Raises
     ------
@@ -94,7 +128,7 @@ class ServerSource:
 
     def __init__(
         self,
-        host: DispatchHost,
+        host: DispatchApplication,
         *,
         clock: Callable[[], float] | None = None,
         categories: Mapping[int, str] | None = None,

@@ -5,8 +5,8 @@ the dispatcher's forms (TSRs, restrictions, dispatch commands) to it and pushes 
 WebSocket. The source owns the ground's state and its clock; the app never interprets a
 snapshot. Two sources exist:
 
-- :class:`railpilot.web.fake.FakeGround`: a deterministic line full of trains, for the
-  tests and the screenshot demo;
+- :class:`railpilot.cosim.demo_ground.DemoGround`: a deterministic line full of scripted trains
+  around the real ground host (in the co-simulation), for the tests and the demo;
 - :class:`railpilot.web.ground_source.ServerSource`: the live ground server
   (net/server.py), in its event loop (docs/dashboard.md, "The live ground").
 
@@ -73,7 +73,7 @@ class DashboardSource(Protocol):
     """The ground as the dashboard sees it (module docstring).
 
     Every method is called from the web server's event loop and must return quickly; a
-    source updated from another thread guards its state itself (FakeGround holds a lock).
+    source updated from another thread guards its state itself (DemoGround holds a lock).
 
     Optional: ``starting() -> str | None``, why the source cannot be shown yet (the live
     ground until it has restored from its store), or None; while it gives a reason the app
@@ -81,7 +81,7 @@ class DashboardSource(Protocol):
     """
 
     def now_s(self) -> float:
-        """The ground clock [s] (epoch seconds on a live ground, simulated in the fake)."""
+        """The ground clock [s] (epoch seconds; simulated in the demo)."""
         ...
 
     def version(self) -> int:

@@ -1,8 +1,8 @@
 """The dashboard's snapshot, part by part, from the ground's own objects (no I/O, no clock).
 
 Each function turns what ``ground/`` and ``line/`` already compute into the JSON-ready
-dicts of :mod:`railpilot.web.source` (km posts in km, speeds in km/h, times in s), so the
-fake source and the live ground server produce the same snapshot. Nothing here decides
+dicts of :mod:`railpilot.web.source` (km posts in km, speeds in km/h, times in s), so
+every source produces the same snapshot. Nothing here decides
 anything the ground does not: the one rule of its own is the signal aspect the page shows
 (:func:`signal_aspects`) and what counts as an alarm (:func:`train_alarms`).
 """

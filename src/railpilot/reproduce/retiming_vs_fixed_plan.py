@@ -1,4 +1,4 @@
-"""Online re-timing against the fixed plan on the heavy-haul line (issue 11 item 2).
+"""Online re-timing against the fixed plan on the heavy-haul line.
 
 Paper 001 section 2.3: the ground compares each train's planned-curve report with the plan,
 re-optimises the running times and sends them; the paper's motivation is a planned 8 h
@@ -34,7 +34,7 @@ from typing import Any
 import numpy as np
 
 from railpilot.ground.energy import SectionEnergy, route_energy
-from railpilot.ground.retime import (
+from railpilot.ground.running_time_lp import (
     CommittedSection,
     RetimeProblem,
     RetimeResult,

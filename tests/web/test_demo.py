@@ -1,4 +1,4 @@
-"""The made-up ground: deterministic, the ground's own rules, deliveries that progress."""
+"""The demo ground: the real ground host over the simulated radio, with scripted trains."""
 
 from __future__ import annotations
 
@@ -6,26 +6,29 @@ import json
 
 import pytest
 
+from railpilot.cosim.demo_ground import DemoGround
 from railpilot.errors import ConfigError
 from railpilot.link.ground import TsrState
-from railpilot.web.fake import FakeGround
 from railpilot.web.source import DashboardSource
 
 from .conftest import TSR_FORM
 
+# each test builds the 24-train demo ground (about 2.6 s of warm-up on the real ground)
+pytestmark = pytest.mark.slow
 
-def test_it_is_a_dashboard_source(ground: FakeGround) -> None:
+
+def test_it_is_a_dashboard_source(ground: DemoGround) -> None:
     assert isinstance(ground, DashboardSource)
 
 
 def test_the_same_seed_gives_the_same_line() -> None:
-    a, b = FakeGround(10, seed=4), FakeGround(10, seed=4)
+    a, b = DemoGround(10, seed=4), DemoGround(10, seed=4)
     a.advance(30.0)
     b.advance(30.0)
     assert json.dumps(a.snapshot(a.now_s())) == json.dumps(b.snapshot(b.now_s()))
 
 
-def test_time_moves_only_when_advanced(ground: FakeGround) -> None:
+def test_time_moves_only_when_advanced(ground: DemoGround) -> None:
     start, version = ground.now_s(), ground.version()
     assert ground.snapshot(start)["now_s"] == start
     ground.advance(2.5)
@@ -34,19 +37,20 @@ def test_time_moves_only_when_advanced(ground: FakeGround) -> None:
         ground.advance(-1.0)
 
 
-def test_the_demo_line_has_its_incidents(ground: FakeGround) -> None:
+def test_the_demo_line_has_its_incidents(ground: DemoGround) -> None:
     snap = ground.snapshot(ground.now_s())
     alarms = {(a["kind"], a["train"]) for a in snap["alarms"]}
-    assert alarms == {("overspeed", 1003), ("link", 1016)}
-    held = [t for t in snap["trains"] if t["target"]]
-    assert [(t["id"], t["target"]["reason"], t["speed_kmh"]) for t in held] == [
-        (1007, "SECTION_FAULT", 0.0)
-    ]
+    assert alarms == {("overspeed", ground.overspeeding), ("link", ground.link_lost)}
+    # the ground's own target points: the faulted train stands before the section fault
+    # (every other train's target, if any, is the red signal behind the train ahead)
+    held = {t["id"]: (t["target"]["reason"], t["speed_kmh"]) for t in snap["trains"] if t["target"]}
+    assert held.pop(ground.faulted) == ("SECTION_FAULT", 0.0)
+    assert {reason for reason, _ in held.values()} <= {"TRAIN_AHEAD"}
     assert [b["state"] for b in snap["blocks"]].count("restricted") == 1
-    assert snap["dispatch"][0]["train"] == 1007
+    assert snap["dispatch"][0]["train"] == ground.faulted
 
 
-def test_a_tsr_goes_pending_then_active_train_by_train(ground: FakeGround) -> None:
+def test_a_tsr_goes_pending_then_active_train_by_train(ground: DemoGround) -> None:
     result = ground.set_tsr(TSR_FORM, "d1", ground.now_s())
     session = result["ok"]["session"]
     trains = [d["train"] for d in result["ok"]["deliveries"]]
@@ -55,11 +59,11 @@ def test_a_tsr_goes_pending_then_active_train_by_train(ground: FakeGround) -> No
     for _ in range(6):
         ground.advance(1.0)
         seen.append({t for t in trains if ground.delivery_state(session, t) is TsrState.ACTIVE})
-    assert seen[0] != seen[-1]  # one after another, as the acknowledgements come back
-    assert seen[-1] == set(trains) - {1016}  # the train without a link never answers
+    assert seen[0] != seen[-1]  # one after another, as each slow radio answers
+    assert seen[-1] == set(trains) - {ground.link_lost}  # the train without a link never answers
 
 
-def test_an_invalid_form_changes_nothing(ground: FakeGround) -> None:
+def test_an_invalid_form_changes_nothing(ground: DemoGround) -> None:
     version = ground.version()
     result = ground.set_tsr({**TSR_FORM, "limit_kmh": "-3"}, "d1", ground.now_s())
     assert list(result) == ["errors"] and "limit_kmh" in result["errors"]

@@ -24,19 +24,19 @@ With ``dispatch=True`` it also runs the dispatch core as ``railpilot ground serv
 target points every second). With ``dashboard=True`` (which implies ``dispatch``) it also
 serves the dispatcher dashboard (web/, in the server's own event loop, as ``ground serve
 --http-port``), and the page is opened in Debian's headless chromium in another child
-process (:mod:`railpilot.net.page_probe`);
+process (:mod:`railpilot.rigs.page_probe`);
 the report gains a ``dashboard`` object: how often the page drew (over the steady window,
 after the ramp and before the end), the longest gap between two renders, and what each
 WebSocket push cost the server's loop (snapshot build + JSON encode) and weighed.
 
-Keys are derived from the seed in memory (test keys: never written, never used in service).
+Keys are derived from the seed in memory (:func:`railpilot.link.keys.seeded_test_keys`: test
+keys, never written, never used in service).
 """
 
 from __future__ import annotations
 
 import asyncio
 import contextlib
-import hashlib
 import itertools
 import logging
 import math
@@ -53,12 +53,12 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError
-from railpilot.heap import freeze_startup
+from railpilot.gc_tuning import freeze_startup
+from railpilot.ground.assembly import GroundParts
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link import (
     Event,
     GroundConfig,
-    KeyStore,
     LinkConfigError,
     LinkTimers,
     MessageReceived,
@@ -68,14 +68,15 @@ from railpilot.link import (
     TsrApplied,
     TsrSet,
 )
+from railpilot.link.keys import seeded_test_keys
+from railpilot.net.client import OnboardClient, Trajectory
+from railpilot.net.ground_app import ground_server, live_ground
+from railpilot.net.timers import TickScheduler
 from railpilot.units import kmh_to_mps
 
-from .client import OnboardClient, Trajectory
 from .page_probe import ProbeOptions, probe_main
-from .server import GroundServer
-from .timers import TickScheduler
 
-log = logging.getLogger("railpilot.net.loadtest")
+log = logging.getLogger("railpilot.rigs.loadtest")
 
 GROUND_ID = 1
 FIRST_TRAIN_ID = 10_001
@@ -134,16 +135,6 @@ class LoadtestOptions:
 
     def train_ids(self) -> range:
         return range(FIRST_TRAIN_ID, FIRST_TRAIN_ID + self.trains)
-
-
-def loadtest_keys(seed: int, train_ids: range) -> KeyStore:
-    """Deterministic per-train test keys (derived from the seed, kept in memory only)."""
-    keys = KeyStore()
-    for train in train_ids:
-        keys.add_key(
-            train, 1, hashlib.sha256(f"railpilot-loadtest:{seed}:{train}".encode()).digest()
-        )
-    return keys
 
 
 def layout(options: LoadtestOptions, line: RailLine) -> dict[int, Trajectory]:
@@ -212,7 +203,7 @@ async def _run_clients(
     start_at: float,
     conn: Connection,
 ) -> dict[str, Any]:
-    keys = loadtest_keys(options.seed, options.train_ids())
+    keys = seeded_test_keys(options.seed, options.train_ids())
     timers = options.timers()
     scheduler = TickScheduler()
     clients: list[OnboardClient] = []
@@ -381,16 +372,17 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
     from railpilot.line.loader import load_line
 
     ids = list(options.train_ids())
-    keys = loadtest_keys(options.seed, options.train_ids())
+    keys = seeded_test_keys(options.seed, options.train_ids())
     line = load_line(LINE)
     trajectories = layout(options, line)
-    server = GroundServer(
-        GroundConfig(ground_id=GROUND_ID, timers=options.timers()),
-        keys,
-        host=HOST,
-        port=0,
-        backlog=min(4096, options.trains + 64),
-    )
+    parts = GroundParts(GroundConfig(ground_id=GROUND_ID, timers=options.timers()), line, keys)
+    backlog = min(4096, options.trains + 64)
+    host = None
+    if options.dispatch or options.dashboard:
+        host = live_ground(parts, host=HOST, port=0, backlog=backlog)
+        server = host.server
+    else:
+        server = ground_server(parts, host=HOST, port=0, backlog=backlog)
     latencies_ms: list[float] = []
     received = 0
     acknowledged: set[int] = set()
@@ -404,11 +396,6 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
             acknowledged.add(event.train_id)
 
     server.add_listener(listener)
-    host = None
-    if options.dispatch or options.dashboard:
-        from .dispatch_host import DispatchHost
-
-        host = DispatchHost(server, line)
     _, port = await server.start()
     if host is not None:
         host.start()
@@ -417,7 +404,7 @@ async def _run(options: LoadtestOptions) -> dict[str, Any]:
     if options.dashboard:
         dashboard = _Dashboard(host, options)
         await dashboard.start(ctx)
-    freeze_startup()  # as `ground serve` does, once started (railpilot/heap.py)
+    freeze_startup()  # as `ground serve` does, once started (railpilot/gc_tuning.py)
 
     shares = [ids[i :: options.client_processes] for i in range(options.client_processes)]
     pipes: list[Connection] = []

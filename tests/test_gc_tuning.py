@@ -1,4 +1,4 @@
-"""railpilot/heap.py: pausing automatic garbage collection across awaits, and freezing
+"""railpilot/gc_tuning.py: pausing automatic garbage collection across awaits, and freezing
 what start-up left alive."""
 
 from __future__ import annotations
@@ -8,7 +8,7 @@ import gc
 
 import pytest
 
-from railpilot.heap import collection_paused, freeze_startup
+from railpilot.gc_tuning import collection_paused, freeze_startup
 
 
 @pytest.fixture(autouse=True)

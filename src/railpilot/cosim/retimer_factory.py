@@ -1,5 +1,5 @@
 """The ground's re-timing in a line run: the timetables it holds and the sections' curves
-(ground/retimer.py; issue 12 item 3; docs/line-run.md "Re-timing in the loop").
+(ground/online_retimer.py; docs/line-run.md "Re-timing in the loop").
 
 The ground of a line run holds every train's timetable, as a dispatch centre holds the
 day's plan, and asks the onboard planner for a section's energy-time curve
@@ -15,7 +15,7 @@ from collections.abc import Callable
 from functools import lru_cache
 
 from railpilot.ground.energy import section_energy
-from railpilot.ground.retimer import OnlineRetimer, SectionCurve, TimetabledTrain, timetabled
+from railpilot.ground.online_retimer import OnlineRetimer, SectionCurve, TimetabledTrain, timetabled
 from railpilot.line.model import RailLine
 from railpilot.onboard.drive import train_preset
 

@@ -1,4 +1,4 @@
-"""Online running-time re-optimisation on the ground (paper 001 section 2.3; issue 11 item 2).
+"""Online running-time re-optimisation on the ground (paper 001 section 2.3).
 
 When a train's planned-curve report shows it off plan, the ground re-times the remaining
 sections of that train and of the trains behind it, and sends the new running times

@@ -1,7 +1,7 @@
 """Re-timing in the loop: when a train runs off plan, the ground re-times it and the trains
-behind it and sends them new running times (paper 001 section 2.3; issue 12 item 3).
+behind it and sends them new running times (paper 001 section 2.3).
 
-:mod:`railpilot.ground.retime` solves one re-timing problem. :class:`OnlineRetimer` decides
+:mod:`railpilot.ground.running_time_lp` solves one re-timing problem. :class:`OnlineRetimer` decides
 when to pose one and what it holds, from what the ground knows on the line: each train's
 timetable (given by the operator), its planned-curve reports (link ``PlannedCurve``: the
 station pair it runs, the time run and the time its plan still needs), its running info
@@ -47,7 +47,7 @@ What each train still has
     left out. A train that has deregistered (at its destination) is done: its last
     report may not have come.
 What goes out
-    :func:`~railpilot.ground.retime.retime` (the LP; its proportional-slack fallback if
+    :func:`~railpilot.ground.running_time_lp.retime` (the LP; its proportional-slack fallback if
     HiGHS fails): each train of the problem whose running times changed by more than
     ``SENT_TOLERANCE_S`` gets ``RunningTimes`` for its remaining sections. The times are
     unacknowledged (the link's ``send``); a train that registers later gets the last ones
@@ -76,7 +76,7 @@ import numpy as np
 from railpilot.errors import ConfigError, is_finite_number
 from railpilot.link.messages import PlannedCurve, RunningTimes
 
-from .retime import (
+from .running_time_lp import (
     CommittedSection,
     EnergyCurve,
     RetimeProblem,
@@ -98,7 +98,7 @@ class RetimerSettings:
     ----------
     headway_s
         The fixed-block headway between consecutive trains on a section [s]
-        (ground/retime.py).
+        (ground/running_time_lp.py).
     energy_weight_s_per_kwh
         What one kWh is worth in seconds of lateness.
     off_plan_s

@@ -1,4 +1,4 @@
-"""Re-timing in the loop (railpilot.ground.retimer), issue 12 item 3.
+"""Re-timing in the loop (railpilot.ground.online_retimer).
 
 A small line (stations 1 to 4, three sections of 1000 s planned, 800 s at the fastest), a
 train every 10 minutes each way, synthetic energy curves: what the retimer hears (planned
@@ -16,14 +16,14 @@ import pytest
 
 from railpilot.errors import ConfigError
 from railpilot.ground.dispatch import GroundDispatch, SendRunningTimes
-from railpilot.ground.retime import EnergyCurve
-from railpilot.ground.retimer import (
+from railpilot.ground.online_retimer import (
     OnlineRetimer,
     RetimerSettings,
     SectionCurve,
     TimetabledTrain,
     timetabled,
 )
+from railpilot.ground.running_time_lp import EnergyCurve
 from railpilot.line import load_line
 from railpilot.link import MessageReceived, TrainRegistered
 from railpilot.link.messages import (

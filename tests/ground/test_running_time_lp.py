@@ -1,4 +1,4 @@
-"""The re-timing LP (railpilot.ground.retime), issue 11 item 2.
+"""The re-timing LP (railpilot.ground.running_time_lp).
 
 Checked against independent computations: optima worked out by hand on one train and two
 sections; every constraint re-checked numerically on random instances (leaders found with a
@@ -20,7 +20,7 @@ from hypothesis import strategies as st
 from numpy.testing import assert_allclose
 
 from railpilot.errors import ConfigError
-from railpilot.ground.retime import (
+from railpilot.ground.running_time_lp import (
     STATUS_FALLBACK,
     STATUS_FIXED,
     STATUS_OPTIMAL,
@@ -392,7 +392,7 @@ def test_infeasible_latest_arrival_falls_back_and_says_so(caplog: pytest.LogCapt
         "T1", (a, b), (0.0, 130.0), (10.0,), earliest_departure_s=30.0, latest_arrival_s=250.0
     )
     problem = RetimeProblem((train,), 60.0, 0.0, 0.5)
-    with caplog.at_level(logging.WARNING, logger="railpilot.ground.retime"):
+    with caplog.at_level(logging.WARNING, logger="railpilot.ground.running_time_lp"):
         result = retime(problem)
     assert result.status == STATUS_FALLBACK and result.fallback
     assert "infeasible" in result.reason and "T1" in result.reason

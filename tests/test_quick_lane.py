@@ -1,0 +1,53 @@
+"""The quick lane for development, ``pytest -m "not slow"``: the tests marked slow (the
+marker of pyproject.toml) are left out, among them every test that drives Debian's chromium
+or runs the line live over TCP; ``make test`` and CI select no marker and run them all."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+#: the tests that drive a browser or run the line live: slow by nature, whatever the machine
+BROWSER_AND_LIVE = [
+    "tests/web/test_dashboard_browser.py",
+    "tests/web/test_live_dashboard.py",
+    "tests/web/test_demo_screenshot.py::test_the_demo_writes_a_screenshot_with_every_train",
+    "tests/net/test_loadtest.py::test_dashboard_loadtest_reports_what_the_page_drew",
+    "tests/cosim/test_live.py::test_live_run_gives_the_co_simulations_kpis_within_the_stated_tolerance",
+    "tests/cosim/test_live.py::test_live_run_went_over_the_real_link_on_the_run_s_clock",
+    "tests/cosim/test_live.py::test_the_scenario_s_radio_stood_between_the_trains_and_the_ground_live",
+    "tests/cosim/test_live.py::test_the_dashboard_was_photographed_during_the_live_run",
+]
+
+
+def _collected(*args: str) -> set[str]:
+    """The test ids ``pytest --collect-only`` selects with ``args``, in a process of its own."""
+    done = subprocess.run(
+        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", *args],
+        cwd=ROOT,
+        capture_output=True,
+        text=True,
+        check=False,
+    )
+    # 5: no test selected
+    assert done.returncode in (0, 5), done.stdout[-3000:] + done.stderr[-3000:]
+    return {line for line in done.stdout.splitlines() if "::" in line}
+
+
+# two collections of the whole web package and more: slow itself
+@pytest.mark.slow
+def test_every_browser_and_live_test_is_slow_and_the_quick_lane_keeps_the_rest() -> None:
+    slow = _collected("-m", "slow", *BROWSER_AND_LIVE)
+    assert slow, "the slow set is empty"
+    for target in BROWSER_AND_LIVE:
+        assert any(test == target or test.startswith(f"{target}::") for test in slow), target
+    # tests/cosim/test_live.py's signal cases run no live line: the quick lane keeps them
+    quick = _collected("-m", "not slow", *BROWSER_AND_LIVE, "tests/cosim/test_live.py")
+    assert quick, "the quick lane is empty"
+    assert not quick & slow
+    assert all(test.startswith("tests/cosim/test_live.py::") for test in quick), sorted(quick)
