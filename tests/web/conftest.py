@@ -15,7 +15,7 @@ from typing import Any
 
 import pytest
 
-from railpilot.cosim.demo_ground import DemoGround
+from railpilot.cosim.demo_ground import MIN_WARMUP_S, DemoGround
 from railpilot.web.app import ThreadedServer, create_app, server_config
 from railpilot.web.browser import CHROMIUM, CHROMIUM_FLAGS
 
@@ -60,8 +60,9 @@ def browser_context_args(browser_context_args: dict[str, Any]) -> dict[str, Any]
 
 @pytest.fixture
 def ground() -> DemoGround:
-    """The heavy-haul line with 24 trains, at the demo ground's start."""
-    return DemoGround(24, seed=0)
+    """The heavy-haul line with 24 trains, at the demo ground's start (after the shortest
+    warm-up: every scripted incident has happened)."""
+    return DemoGround(24, seed=0, warmup_s=MIN_WARMUP_S)
 
 
 @dataclass

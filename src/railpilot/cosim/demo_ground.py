@@ -22,7 +22,7 @@ What happens on the line (all from the seed, the same every run):
   an onboard does on link loss, and what is sent to it waits for it);
 - one TSR (track work, km 120-126.5) is in force from before the start; a section fault
   is declared on an UP block two blocks ahead of the UP train nearest the line's middle
-  7.5 minutes before the start (cleared 20 minutes after it), and that train is told by
+  320 s before the start (cleared 20 minutes after it), and that train is told by
   a dispatch command.
 
 Run the dashboard over it (``python -m railpilot.cosim.demo_ground --port 8080``).
@@ -76,6 +76,12 @@ from .link_sim import LinkSim, SimTrain
 DEFAULT_START_S = 1_772_431_200.0
 #: Simulated history before the start [s], so the time-distance graph has a past.
 WARMUP_S = 600.0
+#: The shortest warm-up [s]: the trains register, then the preset TSR is set and the
+#: section fault declared before the start (the tests' grounds, cheap to build).
+MIN_WARMUP_S = 330.0
+#: When the preset TSR is set and the section fault declared, before the start [s].
+PRESET_TSR_BEFORE_S = 325.0
+FAULT_BEFORE_S = 320.0
 #: Cruising margin below the static limit [km/h], the overspeeding train's excess [km/h].
 CRUISE_MARGIN_KMH = 5.0
 OVERSPEED_KMH = 10.0
@@ -234,8 +240,8 @@ class DemoGround:
     start_s
         The ground clock [s] after the warm-up, when the page first looks.
     warmup_s
-        How long the line runs before the start [s] (at least 600: the preset TSR, the
-        section fault and the link loss happen in it).
+        How long the line runs before the start [s] (at least 330: the preset TSR, the
+        section fault and the link loss happen in its last 325 s).
     off_radio
         Trains (of ids 1001 on) whose onboard unit stays off: they run on the line, and
         the ground never hears of them.
@@ -257,8 +263,8 @@ class DemoGround:
         if unknown:
             raise ConfigError("off_radio", unknown, f"ids of the trains, 1001-{1000 + n_trains}")
         self.off_radio = frozenset(off_radio)
-        if not (isinstance(warmup_s, int | float) and 600.0 <= warmup_s <= 7200.0):
-            raise ConfigError("warmup_s", warmup_s, "a time from 600 to 7200 [s]")
+        if not (isinstance(warmup_s, int | float) and MIN_WARMUP_S <= warmup_s <= 7200.0):
+            raise ConfigError("warmup_s", warmup_s, f"a time from {MIN_WARMUP_S:g} to 7200 [s]")
         self.line = line if line is not None else load_line("heavy-haul")
         self._lock = threading.RLock()
         self._version = 0
@@ -276,8 +282,8 @@ class DemoGround:
         self.source = ServerSource(_SimDispatchHost(self.sim))
         #: the train told of the section fault (set when it is declared)
         self.faulted: int | None = None
-        self.sim.call_at(self.warmup_s - 500.0, self._preset_tsr)
-        self.sim.call_at(self.warmup_s - 450.0, self._declare_fault)
+        self.sim.call_at(self.warmup_s - PRESET_TSR_BEFORE_S, self._preset_tsr)
+        self.sim.call_at(self.warmup_s - FAULT_BEFORE_S, self._declare_fault)
         self.sim.call_at(self.warmup_s + 1200.0, self._clear_fault)
         self._run_to(self.warmup_s)
 
