@@ -7,7 +7,6 @@ each swept figure as NumPy does.
 from __future__ import annotations
 
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,7 +16,7 @@ from hypothesis import strategies as st
 from railpilot.cosim import kpis as table
 from railpilot.cosim.export import events_document
 from railpilot.cosim.line_run import Overspeed, SignalPassedAtRed, TsrViolation, run_line
-from railpilot.cosim.scenario import line_scenario_from_mapping, load_line_scenario
+from railpilot.cosim.scenario import line_scenario_from_mapping
 
 #: what the KPI object gives before the table's entries
 HEADER = ["scenario", "seed", "driver", "train_model", "sim_s", "trains"]
@@ -127,15 +126,6 @@ def test_the_text_prints_each_kpi_with_a_text_and_the_baseline_beside_it(runs):
         assert line.startswith(f"  {kpi.label}: ")
         assert ("(baseline " in line) == kpi.against_baseline
     assert all("(baseline" not in line for line in table.text_lines(advised.kpis()))
-
-
-@pytest.mark.slow
-def test_the_safety_kpis_are_zero_on_the_shipped_short_day():
-    day = load_line_scenario(Path(__file__).parents[2] / "examples" / "line_short_day.toml")
-    kpis = run_line(day).kpis(run_line(day, advised=False))
-    for kpi in table.safety_kpis():
-        assert kpis[kpi.name] == 0, kpi.name
-        assert kpis["baseline"].get(kpi.name, 0) == 0, kpi.name
 
 
 # --- a sweep ---------------------------------------------------------------------------

@@ -8,6 +8,7 @@ import math
 
 import pytest
 
+from railpilot.cosim import kpis as kpi_table
 from railpilot.cosim.driver import SectionRun, Service, Stop
 from railpilot.cosim.line_run import TrainRun, punctuality, run_line
 from railpilot.cosim.scenario import load_line_scenario
@@ -91,3 +92,9 @@ def test_a_short_day_reads_the_arrivals_the_trains_made(short_day) -> None:  # t
     # the train that failed and stood 10 minutes (K102) is the latest, most of it still lost
     assert max(kpis["trains"]["102"]["arrival_delays_s"]) == max(made) > 480.0
     assert on_time["within_5_min_pct"] < 100.0
+
+
+def test_the_safety_kpis_are_zero_on_the_shipped_short_day(short_day) -> None:  # type: ignore[no-untyped-def]
+    kpis = short_day.kpis()
+    for kpi in kpi_table.safety_kpis():
+        assert kpis[kpi.name] == 0, kpi.name
