@@ -8,7 +8,10 @@ The browser tests use Playwright for Python with the system's chromium (Debian p
 from __future__ import annotations
 
 import contextlib
+import copy
+import copyreg
 import threading
+import types
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
@@ -58,11 +61,21 @@ def browser_context_args(browser_context_args: dict[str, Any]) -> dict[str, Any]
     return {**browser_context_args, "viewport": {"width": 1600, "height": 1000}}
 
 
-@pytest.fixture
-def ground() -> DemoGround:
-    """The heavy-haul line with 24 trains, at the demo ground's start (after the shortest
-    warm-up: every scripted incident has happened)."""
+# copy.deepcopy of a ground copies the read-only views of its line and link tables too
+copyreg.pickle(types.MappingProxyType, lambda view: (types.MappingProxyType, (dict(view),)))
+
+
+@pytest.fixture(scope="session")
+def _warmed_up_ground() -> DemoGround:
     return DemoGround(24, seed=0, warmup_s=MIN_WARMUP_S)
+
+
+@pytest.fixture
+def ground(_warmed_up_ground: DemoGround) -> DemoGround:
+    """The heavy-haul line with 24 trains, at the demo ground's start (after the shortest
+    warm-up: every scripted incident has happened): a copy of one built once, each test its
+    own (tests/web/test_demo.py checks a copy runs as a ground built afresh)."""
+    return copy.deepcopy(_warmed_up_ground)
 
 
 @dataclass

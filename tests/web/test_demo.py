@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
+import copy
 import json
 
 import pytest
 
-from railpilot.cosim.demo_ground import DemoGround
+from railpilot.cosim.demo_ground import MIN_WARMUP_S, DemoGround
 from railpilot.errors import ConfigError
 from railpilot.link.ground import TsrState
 from railpilot.web.source import DashboardSource
@@ -69,3 +70,18 @@ def test_an_invalid_form_changes_nothing(ground: DemoGround) -> None:
     assert list(result) == ["errors"] and "limit_kmh" in result["errors"]
     assert [t["session"] for t in ground.snapshot(ground.now_s())["tsrs"]] == [1]
     assert ground.version() == version
+
+
+def test_a_copy_of_a_ground_runs_as_one_built_afresh(ground: DemoGround) -> None:
+    """The other tests get copies of one warmed-up ground (conftest.py): a copy, advanced,
+    shows what a ground built afresh shows, and the one it was copied from is untouched."""
+    copied = copy.deepcopy(ground)
+    fresh = DemoGround(24, seed=0, warmup_s=MIN_WARMUP_S)
+    before = json.dumps(ground.snapshot(ground.now_s()), sort_keys=True, default=str)
+    for each in (copied, fresh):
+        each.advance(60.0)
+    snapshots = [
+        json.dumps(g.snapshot(g.now_s()), sort_keys=True, default=str) for g in (copied, fresh)
+    ]
+    assert snapshots[0] == snapshots[1]
+    assert json.dumps(ground.snapshot(ground.now_s()), sort_keys=True, default=str) == before

@@ -287,6 +287,17 @@ class DemoGround:
         self.sim.call_at(self.warmup_s + 1200.0, self._clear_fault)
         self._run_to(self.warmup_s)
 
+    def __getstate__(self) -> dict[str, Any]:
+        # copy.deepcopy of a warmed-up ground (the tests copy one instead of building one
+        # each): the copy gets a lock of its own
+        state = self.__dict__.copy()
+        del state["_lock"]
+        return state
+
+    def __setstate__(self, state: dict[str, Any]) -> None:
+        self.__dict__.update(state)
+        self._lock = threading.RLock()
+
     # ------------------------------------------------------------------ set-up
 
     def _make_trains(
