@@ -18,9 +18,6 @@ from railpilot.web.app import STATIC, create_app
 
 from .conftest import DISPATCH_FORM, STARTING, TOKEN, TSR_FORM, StartingGround
 
-# each test builds the 24-train demo ground (about 2.6 s of warm-up on the real ground)
-pytestmark = pytest.mark.slow
-
 AUTH = {"Authorization": f"Bearer {TOKEN}"}
 
 

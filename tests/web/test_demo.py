@@ -14,9 +14,6 @@ from railpilot.web.source import DashboardSource
 
 from .conftest import TSR_FORM
 
-# each test builds the 24-train demo ground (about 2.6 s of warm-up on the real ground)
-pytestmark = pytest.mark.slow
-
 
 def test_it_is_a_dashboard_source(ground: DemoGround) -> None:
     assert isinstance(ground, DashboardSource)

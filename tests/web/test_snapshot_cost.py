@@ -24,9 +24,6 @@ from railpilot.web.app import Push, _dumps, create_app, dumps_sliced
 
 from .conftest import TOKEN
 
-# each test builds the 24-train demo ground (about 2.6 s of warm-up on the real ground)
-pytestmark = pytest.mark.slow
-
 LENGTH_M = 2600.0
 
 
