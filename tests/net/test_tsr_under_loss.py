@@ -3,7 +3,6 @@ the train and acknowledged on the ground (real loopback TCP, seeded proxy)."""
 
 from __future__ import annotations
 
-import asyncio
 from dataclasses import replace
 
 import pytest
@@ -31,13 +30,17 @@ def test_every_tsr_is_applied_exactly_once_and_acknowledged_under_30_percent_los
             for session in sessions:
                 r.server.set_tsr(TRAINS, tsr(session, 1_000.0 * session, 1_000.0 * session + 500))
             await until(lambda: len(r.ground_of(TsrAcknowledged)) == len(TRAINS) * 2, 10.0)
-            await asyncio.sleep(0.6)  # a few more resend intervals: still applied once
+            # the link goes on for a few more resend intervals (counted in the frames each
+            # way, six link cycles of every train, not in seconds): still applied once
+            assert r.proxy is not None
+            stats = r.proxy.stats
+            later = {way: stats[way]["frames"] + 6 * len(TRAINS) for way in ("up", "down")}
+            await until(lambda: all(stats[w]["frames"] >= n for w, n in later.items()), 10.0)
             for train in TRAINS:
                 applied = [e.tsr.session for e in r.onboard_of(train, TsrApplied)]
                 assert sorted(applied) == sorted(sessions), (train, applied)
                 for session in sessions:
                     assert r.server.records[train].tsrs[session].state is TsrState.ACTIVE
-            assert r.proxy is not None
             assert r.proxy.stats["down"]["dropped"] > 0 and r.proxy.stats["up"]["dropped"] > 0
 
     run(scenario(), timeout_s=30.0)
