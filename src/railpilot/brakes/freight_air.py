@@ -523,13 +523,13 @@ def pack_freight_air(
         (PB_DIRECT, direct.astype(float)),
         (PB_BRAKE, braked.astype(float)),
     ):
-        p[P_HEAD + block * n : P_HEAD + (block + 1) * n] = values
+        _block(p, P_HEAD, block, n)[:] = values
     p[P_HEAD + P_BLOCKS * n :] = valves
     s = np.zeros(_scratch_start(n, nv) + SC_BLOCKS * n + N_ALPHAS)
     for block in (SB_BP, SB_AR, SB_ER):
-        s[ST_HEAD + block * n : ST_HEAD + (block + 1) * n] = brake.charged_kpa
+        _block(s, ST_HEAD, block, n)[:] = brake.charged_kpa
     for block in (SB_TRIG, SB_LAUNCH, SB_ARRIVE):
-        s[ST_HEAD + block * n : ST_HEAD + (block + 1) * n] = NEVER
+        _block(s, ST_HEAD, block, n)[:] = NEVER
     launches = ST_HEAD + S_BLOCKS * n + 2 * nv
     s[launches : launches + nv * N_FRONTS] = NEVER
     return p, s
@@ -539,9 +539,15 @@ def pack_freight_air(
 
 
 @njit(cache=True)
+def _block(a: np.ndarray, start: int, k: int, n: int) -> np.ndarray:
+    """The ``k``-th block of ``n`` floats from ``start`` in a packed array (a view)."""
+    return a[start + k * n : start + (k + 1) * n]
+
+
+@njit(cache=True)
 def _state_block(params: np.ndarray, state: np.ndarray, block: int) -> np.ndarray:
     n = int(params[P_N])
-    return state[ST_HEAD + block * n : ST_HEAD + (block + 1) * n]
+    return _block(state, ST_HEAD, block, n)
 
 
 @njit(cache=True)
@@ -621,7 +627,7 @@ def _launch_fronts(
     t = state[ST_T]
     s_app = params[P_S_APP]
     s_rel = params[P_S_REL]
-    bp = state[ST_HEAD + SB_BP * n : ST_HEAD + (SB_BP + 1) * n]
+    bp = _block(state, ST_HEAD, SB_BP, n)
     vbase = ST_HEAD + S_BLOCKS * n
     fl0 = vbase + 2 * nv
     ft0 = fl0 + nv * N_FRONTS
@@ -683,19 +689,19 @@ def _reach_fronts(params: np.ndarray, state: np.ndarray) -> tuple[float, float]:
     rho = params[P_RHO]
     eps = params[P_EPS]
     s_app = params[P_S_APP]
-    x = params[P_HEAD + PB_X * n : P_HEAD + (PB_X + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    x = _block(params, P_HEAD, PB_X, n)
+    braked = _block(params, P_HEAD, PB_BRAKE, n)
     valve_at = params[P_HEAD + P_BLOCKS * n : P_HEAD + P_BLOCKS * n + nv]
     base = ST_HEAD
-    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
-    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
-    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
-    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
-    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
-    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
-    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
-    launch = state[base + SB_LAUNCH * n : base + (SB_LAUNCH + 1) * n]
-    arrive = state[base + SB_ARRIVE * n : base + (SB_ARRIVE + 1) * n]
+    bp = _block(state, base, SB_BP, n)
+    ar = _block(state, base, SB_AR, n)
+    er = _block(state, base, SB_ER, n)
+    mode = _block(state, base, SB_MODE, n)
+    a0 = _block(state, base, SB_A0, n)
+    trig = _block(state, base, SB_TRIG, n)
+    phase = _block(state, base, SB_PHASE, n)
+    launch = _block(state, base, SB_LAUNCH, n)
+    arrive = _block(state, base, SB_ARRIVE, n)
     fl0 = base + S_BLOCKS * n + 2 * nv
     ft0 = fl0 + nv * N_FRONTS
     next_arrival = math.inf
@@ -764,17 +770,17 @@ def _distributor_thresholds(params: np.ndarray, state: np.ndarray) -> float:
     ref = params[P_REF]
     s_app = params[P_S_APP]
     s_rel = params[P_S_REL]
-    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    direct = _block(params, P_HEAD, PB_DIRECT, n)
+    braked = _block(params, P_HEAD, PB_BRAKE, n)
     base = ST_HEAD
-    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
-    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
-    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
-    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
-    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
-    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    bp = _block(state, base, SB_BP, n)
+    ar = _block(state, base, SB_AR, n)
+    mode = _block(state, base, SB_MODE, n)
+    a0 = _block(state, base, SB_A0, n)
+    trig = _block(state, base, SB_TRIG, n)
+    phase = _block(state, base, SB_PHASE, n)
     scratch0 = _scratch_start(n, nv)
-    margin = state[scratch0 + SC_MARGIN * n : scratch0 + (SC_MARGIN + 1) * n]
+    margin = _block(state, scratch0, SC_MARGIN, n)
     latest = NEVER
     for i in range(n):
         if braked[i] < 0.5:
@@ -813,17 +819,17 @@ def _crossings(params: np.ndarray, state: np.ndarray, h: float) -> None:
     s_app = params[P_S_APP]
     s_rel = params[P_S_REL]
     q_depth = params[P_QS_DEPTH]
-    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    direct = _block(params, P_HEAD, PB_DIRECT, n)
+    braked = _block(params, P_HEAD, PB_BRAKE, n)
     base = ST_HEAD
-    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
-    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
-    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
-    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
-    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
-    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
+    bp = _block(state, base, SB_BP, n)
+    ar = _block(state, base, SB_AR, n)
+    bc = _block(state, base, SB_BC, n)
+    mode = _block(state, base, SB_MODE, n)
+    a0 = _block(state, base, SB_A0, n)
+    trig = _block(state, base, SB_TRIG, n)
     scratch0 = _scratch_start(n, nv)
-    margin = state[scratch0 + SC_MARGIN * n : scratch0 + (SC_MARGIN + 1) * n]
+    margin = _block(state, scratch0, SC_MARGIN, n)
     for i in range(n):
         if braked[i] < 0.5 or direct[i] < 0.5:
             continue
@@ -870,19 +876,19 @@ def _pipe_flow(params: np.ndarray, state: np.ndarray, er_kpa: np.ndarray, h: flo
     a_m = params[P_AR_M]
     e_m = a_m * eps / rho
     b = h / params[P_TAU_CH]
-    ell = params[P_HEAD + PB_ELL * n : P_HEAD + (PB_ELL + 1) * n]
-    k = params[P_HEAD + PB_K * n : P_HEAD + (PB_K + 1) * n]
-    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
-    bp = state[ST_HEAD + SB_BP * n : ST_HEAD + (SB_BP + 1) * n]
-    ar = state[ST_HEAD + SB_AR * n : ST_HEAD + (SB_AR + 1) * n]
-    er = state[ST_HEAD + SB_ER * n : ST_HEAD + (SB_ER + 1) * n]
-    mode = state[ST_HEAD + SB_MODE * n : ST_HEAD + (SB_MODE + 1) * n]
-    phase = state[ST_HEAD + SB_PHASE * n : ST_HEAD + (SB_PHASE + 1) * n]
+    ell = _block(params, P_HEAD, PB_ELL, n)
+    k = _block(params, P_HEAD, PB_K, n)
+    direct = _block(params, P_HEAD, PB_DIRECT, n)
+    braked = _block(params, P_HEAD, PB_BRAKE, n)
+    bp = _block(state, ST_HEAD, SB_BP, n)
+    ar = _block(state, ST_HEAD, SB_AR, n)
+    er = _block(state, ST_HEAD, SB_ER, n)
+    mode = _block(state, ST_HEAD, SB_MODE, n)
+    phase = _block(state, ST_HEAD, SB_PHASE, n)
     vbase = ST_HEAD + S_BLOCKS * n
     scratch0 = _scratch_start(n, nv)
-    upper = state[scratch0 + SC_UPPER * n : scratch0 + (SC_UPPER + 1) * n]
-    charging = state[scratch0 + SC_CHARGING * n : scratch0 + (SC_CHARGING + 1) * n]
+    upper = _block(state, scratch0, SC_UPPER, n)
+    charging = _block(state, scratch0, SC_CHARGING, n)
     # the extra diagonal (in ``upper`` until the sweep overwrites it), its pressures folded
     # into the right-hand side as ``bp * l``; 1 = the AR charges, 2 = the ER, 3 = both
     c_ar = a_m * b / (1.0 + b)
@@ -952,17 +958,17 @@ def _local_exchanges(params: np.ndarray, state: np.ndarray, h: float, alphas: np
     al_ev = alphas[AL_EV]
     al_e1 = alphas[AL_E1]
     al_e2 = alphas[AL_E2]
-    direct = params[P_HEAD + PB_DIRECT * n : P_HEAD + (PB_DIRECT + 1) * n]
-    braked = params[P_HEAD + PB_BRAKE * n : P_HEAD + (PB_BRAKE + 1) * n]
+    direct = _block(params, P_HEAD, PB_DIRECT, n)
+    braked = _block(params, P_HEAD, PB_BRAKE, n)
     base = ST_HEAD
-    bp = state[base + SB_BP * n : base + (SB_BP + 1) * n]
-    ar = state[base + SB_AR * n : base + (SB_AR + 1) * n]
-    bc = state[base + SB_BC * n : base + (SB_BC + 1) * n]
-    er = state[base + SB_ER * n : base + (SB_ER + 1) * n]
-    mode = state[base + SB_MODE * n : base + (SB_MODE + 1) * n]
-    a0 = state[base + SB_A0 * n : base + (SB_A0 + 1) * n]
-    trig = state[base + SB_TRIG * n : base + (SB_TRIG + 1) * n]
-    phase = state[base + SB_PHASE * n : base + (SB_PHASE + 1) * n]
+    bp = _block(state, base, SB_BP, n)
+    ar = _block(state, base, SB_AR, n)
+    bc = _block(state, base, SB_BC, n)
+    er = _block(state, base, SB_ER, n)
+    mode = _block(state, base, SB_MODE, n)
+    a0 = _block(state, base, SB_A0, n)
+    trig = _block(state, base, SB_TRIG, n)
+    phase = _block(state, base, SB_PHASE, n)
     for i in range(n):
         if phase[i] == PH_EMERGENCY:
             bp[i] = bp[i] * al_ev
