@@ -46,6 +46,7 @@ from typing import Any
 from railpilot.errors import ConfigError
 from railpilot.ground.assembly import GroundParts
 from railpilot.ground.dispatch import GroundDispatch
+from railpilot.ground.host import refuse_keyless
 from railpilot.ground.operations import OperationError, parse_operation
 from railpilot.ground.targets import is_clear
 from railpilot.line.loader import load_line
@@ -212,16 +213,7 @@ class _SimDispatchHost:
 
     def execute_now(self, op: str, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
         operation = parse_operation(op, fields, line=self.line, now_s=self.sim.now_s)
-        # as the live ground: a named train without a key can never register, so a
-        # delivery to it would wait for ever; the whole request is refused
-        keyless = [t for t in getattr(operation, "trains", ()) if self.sim.keys.active(t) is None]
-        if keyless:
-            raise OperationError(
-                {
-                    "trains": f"{keyless!r} is not allowed: expected train ids that have a key "
-                    "(authentication is on)"
-                }
-            )
+        refuse_keyless(operation, self.sim.keys, "")  # as the live ground
         return dict(self.sim.operate(operation, actor).result)
 
 

@@ -35,6 +35,7 @@ from railpilot.link import (
     Event,
     GroundConfig,
     GroundEndpoint,
+    KeyStore,
     LinkError,
     RunningTimes,
     TrainDeregistered,
@@ -56,6 +57,20 @@ from .dispatch import (
 from .journal import Apply, GroundJournal, Request, command_request
 from .operations import Operation, OperationError
 from .store import Snapshot, StoreError
+
+
+def refuse_keyless(operation: object, keys: KeyStore, keys_from: str) -> None:
+    """A named train without a key can never register (authentication on): a delivery
+    would wait for it forever, so the whole request is refused (OperationError naming the
+    trains; ``keys_from`` says where the keys come from)."""
+    keyless = [t for t in getattr(operation, "trains", ()) if keys.active(t) is None]
+    if keyless:
+        raise OperationError(
+            {
+                "trains": f"{keyless!r} is not allowed: expected train ids that have a key "
+                f"{keys_from}(authentication is on)"
+            }
+        )
 
 
 class HostedConnection(Protocol):

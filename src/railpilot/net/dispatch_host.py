@@ -33,9 +33,10 @@ from concurrent.futures import ThreadPoolExecutor
 from typing import Any
 
 from railpilot.ground.dispatch import Command, GroundDispatch, Outcome, command_trains
+from railpilot.ground.host import refuse_keyless
 from railpilot.ground.journal import declared_restrictions
 from railpilot.ground.occupancy import Occupancy
-from railpilot.ground.operations import OperationError, Status, parse_operation
+from railpilot.ground.operations import Status, parse_operation
 from railpilot.line.model import RailLine
 
 from .logfmt import kv
@@ -233,20 +234,9 @@ class DispatchHost:
         return {**outcome.result, "deliveries": {str(t): r for t, r in sorted(deliveries.items())}}
 
     def _check_keys(self, operation: object) -> None:
-        """A named train without a key can never register (authentication on): a delivery
-        would wait for it forever, so the whole request is refused."""
-        trains = getattr(operation, "trains", ())
         keys = self.server.keys
-        if not trains or not self.server.config.require_auth or keys is None:
-            return
-        keyless = [t for t in trains if keys.active(t) is None]
-        if keyless:
-            raise OperationError(
-                {
-                    "trains": f"{keyless!r} is not allowed: expected train ids that have a key "
-                    "in the server's key file (authentication is on)"
-                }
-            )
+        if self.server.config.require_auth and keys is not None:
+            refuse_keyless(operation, keys, "in the server's key file ")
 
     # ------------------------------------------------------------------ carrying out
 
