@@ -4,6 +4,7 @@ or runs the line live over TCP; ``make test`` and CI select no marker and run th
 
 from __future__ import annotations
 
+import json
 import subprocess
 import sys
 from pathlib import Path
@@ -25,10 +26,31 @@ BROWSER_AND_LIVE = [
 ]
 
 
-def _collected(*args: str) -> set[str]:
-    """The test ids ``pytest --collect-only`` selects with ``args``, in a process of its own."""
+#: Run in a process of its own: collect with the given arguments and print, for each test
+#: selected, its id and whether it is marked slow.
+COLLECTOR = """
+import json, sys
+import pytest
+
+class Marks:
+    found = {}
+
+    def pytest_collection_finish(self, session):
+        for item in session.items:
+            self.found[item.nodeid] = item.get_closest_marker("slow") is not None
+
+marks = Marks()
+code = pytest.main(["--collect-only", "-q", "-p", "no:cacheprovider", *sys.argv[1:]], [marks])
+print("MARKS" + json.dumps(marks.found))
+sys.exit(int(code))
+"""
+
+
+def _collected(*args: str) -> dict[str, bool]:
+    """The test ids ``pytest --collect-only`` selects with ``args``, each with whether it is
+    marked slow; one collection, in a process of its own."""
     done = subprocess.run(
-        [sys.executable, "-m", "pytest", "--collect-only", "-q", "-p", "no:cacheprovider", *args],
+        [sys.executable, "-c", COLLECTOR, *args],
         cwd=ROOT,
         capture_output=True,
         text=True,
@@ -36,18 +58,20 @@ def _collected(*args: str) -> set[str]:
     )
     # 5: no test selected
     assert done.returncode in (0, 5), done.stdout[-3000:] + done.stderr[-3000:]
-    return {line for line in done.stdout.splitlines() if "::" in line}
+    line = next(line for line in done.stdout.splitlines() if line.startswith("MARKS"))
+    found: dict[str, bool] = json.loads(line.removeprefix("MARKS"))
+    return found
 
 
-# two collections of the whole web package and more: slow itself
+# a collection of the whole web package and more: slow itself
 @pytest.mark.slow
 def test_every_browser_and_live_test_is_slow_and_the_quick_lane_keeps_the_rest() -> None:
-    slow = _collected("-m", "slow", *BROWSER_AND_LIVE)
+    marked = _collected(*BROWSER_AND_LIVE, "tests/cosim/test_live.py")
+    slow = {test for test, is_slow in marked.items() if is_slow}
     assert slow, "the slow set is empty"
     for target in BROWSER_AND_LIVE:
         assert any(test == target or test.startswith(f"{target}::") for test in slow), target
     # tests/cosim/test_live.py's signal cases run no live line: the quick lane keeps them
-    quick = _collected("-m", "not slow", *BROWSER_AND_LIVE, "tests/cosim/test_live.py")
+    quick = set(marked) - slow
     assert quick, "the quick lane is empty"
-    assert not quick & slow
     assert all(test.startswith("tests/cosim/test_live.py::") for test in quick), sorted(quick)

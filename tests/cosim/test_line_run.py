@@ -348,7 +348,9 @@ def test_a_radio_outage_is_timed_from_the_start_of_the_run():
 def test_a_line_run_can_run_its_trains_on_the_consist_model():
     """``[trains] model = "consist"``: every train of the day is its consist (couplers, the
     freight air brake along it), driven on the same plans; the safety KPIs hold."""
-    day = line_scenario_from_mapping(BASE | {"trains": {"model": "consist"}})
+    # two trains: the failed one and its follower (a consist day costs a third a train)
+    services = [BASE["services"][0] | {"count": 2}]
+    day = line_scenario_from_mapping(BASE | {"services": services, "trains": {"model": "consist"}})
     run = run_line(day)
     kpis = run.kpis()
     assert kpis["train_model"] == "consist"
