@@ -55,7 +55,13 @@ def test_drive_prints_one_object_with_the_documented_keys(tmp_path, capsys) -> N
     assert check["feasible"] is True
     # the planned curve meets the running time asked (fastest + 10 %) within 0.1 s
     assert abs(out["planned_running_time_s"] - out["requested_running_time_s"]) <= 0.1
-    assert len(list(tmp_path.glob("*.png"))) == 2
+    # speed, energy, and on the consist model (the default) the brake cycles
+    assert sorted(p.name for p in tmp_path.glob("*.png")) == [
+        "heavy-haul_1_2_cycles.png",
+        "heavy-haul_1_2_energy.png",
+        "heavy-haul_1_2_speed.png",
+    ]
+    assert sorted(out["figures"]) == sorted(str(p) for p in tmp_path.glob("*.png"))
 
 
 @pytest.mark.parametrize(

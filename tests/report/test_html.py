@@ -40,3 +40,12 @@ def test_report_escapes_text(tmp_path: Path) -> None:
     assert "&lt;better&gt;" in page and "<better>" not in page
     assert "&lt;b&gt;" in page
     assert "Paper 000 &amp; friends" in page
+
+
+def test_a_section_with_its_own_commands_names_them_to_rerun(tmp_path: Path) -> None:
+    section = _section(tmp_path)
+    section.rerun = ("railpilot drive heavy-haul --from 1 --to 2", "railpilot drive a<b")
+    page = write_report([section], tmp_path).read_text()
+    assert "<code>railpilot drive heavy-haul --from 1 --to 2</code>" in page
+    assert "<code>railpilot drive a&lt;b</code>" in page
+    assert "railpilot reproduce smarc-ep" not in page

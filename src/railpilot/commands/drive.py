@@ -223,16 +223,21 @@ def _consist_totals(results: list[dict[str, object]]) -> dict[str, object]:
 
 
 def _save_figures(out: Path, line_name: str, outcome: DriveOutcome) -> list[str]:
-    """The speed and energy figures of one station pair, named after the line and stations."""
-    from railpilot.report.drive_plots import energy_figure, speed_figure
+    """The speed and energy figures of one station pair, named after the line and stations;
+    on the consist model its brake cycles, forces and coupler forces as well
+    (``<line>_<from>_<to>_cycles.png``)."""
+    from railpilot.report.drive_plots import energy_figure, section_figure, speed_figure
     from railpilot.report.figure import save_figure
 
     stem = file_stem(line_name, str(outcome.from_station), str(outcome.to_station))
     out.mkdir(parents=True, exist_ok=True)
-    return [
+    figures = [
         str(save_figure(speed_figure(outcome), out / f"{stem}_speed.png")),
         str(save_figure(energy_figure(outcome), out / f"{stem}_energy.png")),
     ]
+    if outcome.result.meta.get("model") == "consist":
+        figures.append(str(save_figure(section_figure(outcome), out / f"{stem}_cycles.png")))
+    return figures
 
 
 def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type: ignore[no-untyped-def]

@@ -163,7 +163,15 @@ class ConsistDrive:
 
     def result(self) -> SimResult:
         """The run as the drive's summary reads it: the head's series, the point-mass
-        run's metric names, and the consist's own (:data:`CONSIST_METRICS`)."""
+        run's metric names, and the consist's own (:data:`CONSIST_METRICS`).
+
+        Beside the head's series, the coupler-force envelope of each recorded sample
+        (``max_coupler_tension_n``, ``max_coupler_compression_n``: the largest tension and
+        the largest compression along the train [N], both >= 0), and in
+        ``meta["brake_events"]`` the driver's brake applications and releases, each
+        ``{time_s, kind, head_m, reduction_kpa}`` (``head_m`` travelled from the departure;
+        ``reduction_kpa``: an application's deepest reduction before its release, None for
+        a release, an emergency or an application shorter than a recorded sample)."""
         run = self.stepper.result()
         m = run.metrics
         ended = self.stepper.metrics[C_ENDED] > 0.5
@@ -180,4 +188,29 @@ class ConsistDrive:
             "electric_n": run.series["regeneration_n"] - run.series["traction_n"],
             "air_n": run.series["air_brake_n"],
         }
-        return SimResult(series, metrics, {"model": "consist", "consist": run.meta["consist"]})
+        coupler = run.fields["coupler_force_n"]  # + tension; one column a coupling
+        no_couplers = np.zeros(coupler.shape[0])
+        series["max_coupler_tension_n"] = (
+            np.maximum(coupler.max(axis=1), 0.0) if coupler.shape[1] else no_couplers
+        )
+        series["max_coupler_compression_n"] = (
+            np.maximum(-coupler.min(axis=1), 0.0) if coupler.shape[1] else no_couplers
+        )
+        # the lead's equalising reservoir as the driver set it: charged less the reduction
+        reduction_kpa = self.stepper.scenario.consist.brake_pipe_kpa - run.series["lead_er_kpa"]
+        times = list(run.events["time_s"])
+        brake_events = []
+        for i, (time_s, kind, head_m) in enumerate(
+            zip(times, run.events["kind"], run.events["head_m"], strict=True)
+        ):
+            depth = None
+            if kind == "application":
+                # applied until the next event (the brake's state changes at each)
+                end_s = times[i + 1] if i + 1 < len(times) else math.inf
+                held = (run.series["time_s"] >= time_s) & (run.series["time_s"] < end_s)
+                depth = float(reduction_kpa[held].max()) if held.any() else None
+            brake_events.append(
+                {"time_s": time_s, "kind": kind, "head_m": head_m, "reduction_kpa": depth}
+            )
+        meta = {"model": "consist", "consist": run.meta["consist"], "brake_events": brake_events}
+        return SimResult(series, metrics, meta)

@@ -53,9 +53,11 @@ def write_report(sections: list[Reproduction], out_dir: Path) -> Path:
     )
     for s in sections:
         parts.append(f"<h2 id='{s.scenario}'>{html.escape(s.title)}</h2>")
+        commands = s.rerun or (f"railpilot reproduce {s.scenario} --json",)
         parts.append(
-            f"<p class='note'>Rerun this section alone: <code>railpilot reproduce "
-            f"{html.escape(s.scenario)} --json</code></p>"
+            "<p class='note'>Rerun this section alone: "
+            + "; ".join(f"<code>{html.escape(c)}</code>" for c in commands)
+            + "</p>"
         )
         if s.findings:
             parts.append(

@@ -44,7 +44,9 @@ class Reproduction:
 
     ``payload`` is the exact object ``--json`` prints; ``tables`` and ``figures``
     (paths inside the output folder) make up the paper's section of the report,
-    ``findings`` are short honest sentences about what the numbers show.
+    ``findings`` are short honest sentences about what the numbers show. ``rerun``: the
+    commands that give the section again, for a section no ``railpilot reproduce NAME``
+    gives (empty: ``railpilot reproduce`` of ``scenario``).
     """
 
     scenario: str
@@ -53,3 +55,4 @@ class Reproduction:
     tables: list[Table] = field(default_factory=list)
     figures: list[Path] = field(default_factory=list)
     findings: list[str] = field(default_factory=list)
+    rerun: tuple[str, ...] = ()
