@@ -52,7 +52,13 @@ def test_every_entry_after_the_trains_is_the_tables_in_its_order(runs):
     advised, baseline = runs
     kpis = advised.kpis(baseline)
     entries = [k.name for k in table.KPIS if not (k.optional and k.of_run(advised) is None)]
-    assert list(kpis) == [*HEADER, *entries, f"baseline_{table.HEADLINE}", "baseline"]
+    assert list(kpis) == [
+        *HEADER,
+        *entries,
+        f"baseline_{table.HEADLINE}",
+        "baseline",
+        "baselines",
+    ]
     # the live run's figure is the one left out of a co-simulated run's object
     assert [k.name for k in table.KPIS if k.name not in kpis] == ["live"]
 

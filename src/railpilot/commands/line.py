@@ -10,13 +10,18 @@ import math
 import time
 from collections.abc import Iterator
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 from railpilot.commands._common import json_text, log, out_dir_argument, print_json
 from railpilot.errors import ConfigError
 
 if TYPE_CHECKING:
+    from railpilot.cosim.driver import DriverKind
     from railpilot.cosim.line_run import LineResult
+
+#: the baselines ``line simulate`` can run (cosim/driver.py ``BASELINES``; not imported
+#: from there: the command line loads the simulation only when it runs one)
+BASELINE_NAMES = ("minimum-time", "human")
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -32,14 +37,22 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         help="co-simulate a line scenario in simulated time and print its KPIs",
         description="Co-simulate SCENARIO: every train's onboard driving system and "
         "simulation core, the ground's dispatch core, and the safety link between them over "
-        "a simulated radio, in simulated time. Prints paper 001's KPIs, against the baseline "
-        "(the same day driven without advice). With --runs N, sweeps N seeds (locally on "
-        "all cores, or on a Dask cluster with --scheduler) and prints each KPI's spread.",
+        "a simulated radio, in simulated time. Prints paper 001's KPIs, against the baselines "
+        "(the same day driven without advice: the minimum-time driver and the human driver). "
+        "With --runs N, sweeps N seeds (locally on all cores, or on a Dask cluster with "
+        "--scheduler) and prints each KPI's spread (of the advised runs).",
     )
     p.add_argument("scenario", type=Path, help="line-run TOML file (examples/heavy_haul_day.toml)")
     p.add_argument("--seed", type=int, help="seed (default: the file's)")
     p.add_argument("--runs", type=int, default=1, help="seeds to sweep (default 1)")
-    p.add_argument("--no-baseline", action="store_true", help="skip the baseline run")
+    p.add_argument("--no-baseline", action="store_true", help="skip the baseline runs")
+    p.add_argument(
+        "--baselines",
+        default=",".join(BASELINE_NAMES),
+        metavar="NAMES",
+        help="the baselines to run beside a single run, comma-separated (default "
+        f"{','.join(BASELINE_NAMES)}; the files of --out hold the minimum-time one)",
+    )
     p.add_argument("--scheduler", metavar="ADDRESS", help="Dask scheduler for --runs")
     p.add_argument(
         "--out",
@@ -195,6 +208,7 @@ def run(args: argparse.Namespace) -> int:
 
     scenario = load_line_scenario(args.scenario)
     seed = scenario.seed if args.seed is None else args.seed
+    baselines = () if args.no_baseline else _baselines(args.baselines)
     if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:
         raise ConfigError("--runs", args.runs, "a number of runs in [1, 100000]")
     _check_seed(seed, args.runs)
@@ -208,11 +222,12 @@ def run(args: argparse.Namespace) -> int:
     else:
         result = run_line(scenario, seed=seed)
         log(f"{scenario.name}: {result.sim_s:.0f} s simulated in {result.wall_s:.1f} s")
-        baseline = None
-        if not args.no_baseline:
-            baseline = run_line(scenario, seed=seed, advised=False)
-            log(f"baseline: {baseline.wall_s:.1f} s")
-        out = result.kpis(baseline)
+        runs: dict[str, LineResult] = {}
+        for name in baselines:
+            runs[name] = run_line(scenario, seed=seed, driver=cast("DriverKind", name))
+            log(f"{name} baseline: {runs[name].wall_s:.1f} s")
+        baseline = runs.get("minimum-time")
+        out = result.kpis(baseline, runs.get("human"))
         if args.out is not None:
             out["files"] = _write_run(args.out, out, result, baseline)
     if args.json:
@@ -220,6 +235,15 @@ def run(args: argparse.Namespace) -> int:
     else:
         _print_text(out)
     return 0
+
+
+def _baselines(text: str) -> tuple[str, ...]:
+    """``--baselines``: the names, each known and once, in the order given."""
+    names = tuple(name.strip() for name in text.split(","))
+    if not names or any(n not in BASELINE_NAMES for n in names) or len(set(names)) < len(names):
+        allowed = f"a comma-separated list of {', '.join(BASELINE_NAMES)}, each once"
+        raise ConfigError("--baselines", text, allowed)
+    return names
 
 
 def _check_seed(seed: int, runs: int = 1) -> None:

@@ -27,9 +27,12 @@ failure). The ground may answer with new running times for the sections ahead
 (``RunningTimes``, ground/online_retimer.py): each section departed after that is planned for
 the ground's time, and the one being run is planned again for it.
 
-``advised=False`` is the baseline driver (docs/line-run.md, "The baseline"): no planned
-curve (the fastest run to the static limits less the margin, braking late) and no target
-points from the ground (the cab signal only); TSRs are obeyed as orders.
+``advised=False`` is a baseline driver (docs/line-run.md, "The baseline"): no planned
+curve and no target points from the ground (the cab signal only); TSRs are obeyed as
+orders. Which baseline is ``human``: None the minimum-time driver (the fastest run to the
+static limits less the margin, braking late); a :class:`~railpilot.cosim.human_driver.
+HumanDriving` the human driver of cosim/human_driver.py (its margin, coasting habits and
+braking cycles), who acts on a changed TSR or aspect its reaction time late.
 
 Time: the driver works in seconds since the start of the run (``t``); the link speaks
 epoch seconds (``epoch_s + t``).
@@ -40,7 +43,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Any
+from typing import Any, Literal, get_args
 
 import numpy as np
 
@@ -71,12 +74,20 @@ from railpilot.onboard.drive import (
     train_preset,
 )
 from railpilot.onboard.mrsp import Mrsp, TargetStop, direction_sign, most_restrictive_profile
-from railpilot.onboard.planner import SpeedPlan, fastest
+from railpilot.onboard.planner import SpeedPlan, fastest, target_stop_net
 from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.sim.drive_profile import PlannedProfile
 from railpilot.sim.stepper import Stepper
 
+from .human_driver import HumanDriving, human_curve
+
+#: who drives a line run's trains: the advised driving system, or one of the baselines
+#: (docs/line-run.md, "The baseline")
+DriverKind = Literal["advised", "minimum-time", "human"]
+DRIVERS: tuple[DriverKind, ...] = get_args(DriverKind)
+#: the baselines, in the order the KPI object gives them
+BASELINES: tuple[DriverKind, ...] = ("minimum-time", "human")
 #: the simulation core's step [s] (the ATO's control period is its own)
 DEFAULT_DT_S = 0.1
 #: target ids the driver gives the stops it makes itself (the link's are below 2^32)
@@ -212,6 +223,9 @@ class TrainDriver:
     dt_s: float = DEFAULT_DT_S
     #: what follows the plan: the point mass with the precise-stop ATO, or the consist
     model: str = "point-mass"
+    #: the human driver's habits (module docstring): with ``advised=False``, the human
+    #: baseline instead of the minimum-time one
+    human: HumanDriving | None = None
     sections: list[SectionRun] = field(default_factory=list)
     #: red-signal stops (cab signal or target point), failure stands excluded
     red_signal_stops: int = 0
@@ -222,6 +236,8 @@ class TrainDriver:
     running_times_received: int = 0
 
     def __post_init__(self) -> None:
+        if self.human is not None and self.advised:
+            raise ConfigError("human", self.human, "None for the advised driver")
         self.preset: TrainPreset = train_preset(self.service.kind)
         self.direction: TravelDirection = self.service.direction
         self._sign = direction_sign(self.direction)
@@ -236,6 +252,8 @@ class TrainDriver:
         self._held = False  # at a stop whose way out is held
         self._released_s = -math.inf  # when it was last let go (its departure, if held)
         self._reporter = PlannedCurveReporter()
+        #: when the human driver acts on what changed last (None: nothing to act on)
+        self._react_at_s: float | None = None
         static = _route(self.line, self.service.kind, *self._pair(0), self.margin_kmh).static
         top = float(np.max(static.speeds_mps[np.isfinite(static.speeds_mps)]))
         self._safety_m = float(safety_distance_m(top, self.preset.train.max_service_decel_mps2))
@@ -283,7 +301,14 @@ class TrainDriver:
 
     def advance(self, t: float) -> None:
         """Drive on to ``t`` [s since the start]: depart, run, arrive, as the timetable
-        and the train allow."""
+        and the train allow; a human driver acts on what changed when its reaction time
+        is up."""
+        while self._react_at_s is not None and self._react_at_s <= t:
+            react_at, self._react_at_s = self._react_at_s, None
+            self.replan(react_at)
+        self._drive_to(t)
+
+    def _drive_to(self, t: float) -> None:
         while not self.finished:
             running = self._running
             if running is None:
@@ -402,7 +427,17 @@ class TrainDriver:
             return
         else:
             return
-        self.replan(t)
+        self._notice(t)
+
+    def _notice(self, t: float) -> None:
+        """What the driver is told changed at ``t``: it plans again now, or, a human
+        driver, its reaction time later (what it knows then)."""
+        if self.human is None:
+            self.replan(t)
+            return
+        self.advance(t)
+        if self._react_at_s is None:
+            self._react_at_s = t + self.human.reaction_s
 
     def _new_running_times(self, message: RunningTimes, t: float) -> None:
         """The ground re-timed the train: the sections ahead are planned for its times,
@@ -471,7 +506,7 @@ class TrainDriver:
         self._cab_red_m = red_signal_m
         self._cab_sight_m = sight_m
         if self._stops_known() != before:
-            self.replan(t)
+            self._notice(t)
 
     def fail(self, t: float) -> None:
         """The train fails at ``t``: it brakes to a stand at a full-service stop."""
@@ -524,6 +559,17 @@ class TrainDriver:
     ) -> SpeedPlan:
         if self.advised:
             return route.plan_to(end_s, sec, time_s, s0)
+        if self.human is not None:
+            preset = route.preset
+            stop_net = target_stop_net(preset.driving) if end_s < route.length_m else 0.0
+            return human_curve(
+                preset.driving,
+                sec,
+                self.human,
+                planned_margin_mps=route.margin_mps,
+                stop_net_mps2=stop_net,
+                release_s=sum(preset.brake.air.train_release_lead_s(preset.train.length_m)),
+            )
         return route.fastest_to(end_s, sec)
 
     def replan(self, t: float) -> None:

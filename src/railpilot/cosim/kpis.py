@@ -16,8 +16,10 @@ Paper 001's KPIs (tables 2 and 3):
     end (the origin's departure to the destination's arrival), per train and overall.
 ``energy_kwh``
     net traction energy (traction less regeneration) per train and in total;
-    ``baseline_energy_kwh`` is the same day driven by the baseline (no advice, no
-    re-timing: ``run_line`` with ``advised=False``).
+    ``baseline_energy_kwh`` is the same day driven by the minimum-time baseline (no
+    advice, no re-timing: ``run_line`` with ``driver="minimum-time"``),
+    ``human_baseline_energy_kwh`` by the human-driver baseline (``driver="human"``,
+    cosim/human_driver.py).
 ``energy_traction_against_air_kwh``
     of the traction energy drawn, what pulled against the air brake still applied (the
     smaller of the two forces while both act; a loaded train's air brake takes about a
@@ -414,8 +416,15 @@ KPIS: tuple[Kpi, ...] = (
         (Figure("", "simulated seconds per wall-clock second"),),
     ),
 )
-#: the KPI whose baseline figure the KPI object also gives on top (``baseline_<name>``)
+#: the KPI whose baseline figure the KPI object also gives on top (``baseline_<name>``,
+#: ``human_baseline_<name>``)
 HEADLINE = "energy_kwh"
+#: how the KPI object's ``driver`` names who drove a run, and the prefix of a baseline's
+#: headline figure on top of the object, by driver (cosim/driver.py ``DRIVERS``)
+DRIVER_LABELS = {"advised": "advised", "minimum-time": "baseline", "human": "human"}
+HEADLINE_PREFIX = {"minimum-time": "baseline", "human": "human_baseline"}
+#: how the command line's text names a baseline's figure beside the run's
+TEXT_LABELS = {"minimum-time": "baseline", "human": "human baseline"}
 
 
 def by_name(name: str) -> Kpi:
@@ -446,14 +455,18 @@ def swept() -> list[str]:
 # ------------------------------------------------------------------------ the KPI object
 
 
-def kpi_object(result: LineResult, baseline: LineResult | None = None) -> dict[str, Any]:
+def kpi_object(
+    result: LineResult, baseline: LineResult | None = None, human: LineResult | None = None
+) -> dict[str, Any]:
     """The KPI object of ``railpilot line simulate --json``: the run, its trains, then
-    every entry of :data:`KPIS`, and (with ``baseline``) the baseline's figures of the
-    KPIs set against it."""
+    every entry of :data:`KPIS`, and the baselines' figures of the KPIs set against them:
+    the minimum-time ``baseline``'s as ``baseline`` (its headline ``baseline_energy_kwh``),
+    the ``human`` one's headline as ``human_baseline_energy_kwh``, and each given one's in
+    ``baselines``, by driver (cosim/driver.py ``BASELINES``)."""
     out: dict[str, Any] = {
         "scenario": result.scenario.name,
         "seed": result.seed,
-        "driver": "advised" if result.advised else "baseline",
+        "driver": DRIVER_LABELS[result.driver],
         "train_model": result.scenario.train_model,
         "sim_s": result.sim_s,
         "trains": train_rows(result),
@@ -462,10 +475,18 @@ def kpi_object(result: LineResult, baseline: LineResult | None = None) -> dict[s
         value = kpi.of_run(result)
         if value is not None or not kpi.optional:
             out[kpi.name] = value
+    baselines: dict[str, dict[str, Any]] = {}
+    # by the slot it is given in (a study may set any run against this one)
+    for name, run in (("minimum-time", baseline), ("human", human)):
+        if run is None:
+            continue
+        base = kpi_object(run)
+        baselines[name] = {k.name: base[k.name] for k in KPIS if k.against_baseline}
+        out[f"{HEADLINE_PREFIX[name]}_{HEADLINE}"] = base[HEADLINE]
     if baseline is not None:
-        base = kpi_object(baseline)
-        out[f"baseline_{HEADLINE}"] = base[HEADLINE]
-        out["baseline"] = {k.name: base[k.name] for k in KPIS if k.against_baseline}
+        out["baseline"] = baselines["minimum-time"]
+    if baselines:
+        out["baselines"] = baselines
     return out
 
 
@@ -481,15 +502,20 @@ def dig(kpis: Mapping[str, Any], dotted: str) -> float | None:
 
 def text_lines(kpis: Mapping[str, Any]) -> list[str]:
     """The KPIs of one run as the command line prints them: one line each of those with a
-    ``text``, the baseline's beside it where the KPI object has it."""
-    baseline = kpis.get("baseline", {})
+    ``text``, each baseline's beside it where the KPI object has it."""
+    baselines = kpis.get("baselines", {})
     lines = []
     for kpi in KPIS:
         if kpi.text is None or kpi.name not in kpis:
             continue
         line = f"  {kpi.label}: {kpi.text(kpis[kpi.name])}"
-        if kpi.name in baseline:
-            line += f" (baseline {kpi.text(baseline[kpi.name])})"
+        beside = [
+            f"{TEXT_LABELS[name]} {kpi.text(figures[kpi.name])}"
+            for name, figures in baselines.items()
+            if kpi.name in figures
+        ]
+        if beside:
+            line += f" ({'; '.join(beside)})"
         lines.append(line)
     return lines
 

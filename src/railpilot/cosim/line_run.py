@@ -23,12 +23,14 @@ from typing import Any
 
 import numpy as np
 
+from railpilot.errors import ConfigError
 from railpilot.ground.assembly import GroundParts
 from railpilot.ground.store import AuditEntry, Snapshot, Store
 from railpilot.link import GroundConfig, KeyStore, OnboardConfig
 from railpilot.link.keys import seeded_test_keys as loadtest_keys
 
-from .driver import SectionRun, Service, TrainDriver
+from .driver import DRIVERS, DriverKind, SectionRun, Service, TrainDriver
+from .human_driver import DEFAULT_HUMAN, HumanDriving
 from .kpis import ON_TIME_WITHIN_MIN, kpi_object, punctuality
 from .link_sim import LinkSim, SimTrain
 from .retimer_factory import retimer_factory
@@ -193,6 +195,15 @@ class LineResult:
     live: LiveRunInfo | None = None
     #: the ground's re-timings (ground/online_retimer.py ``OnlineRetimer.log``)
     retiming: list[dict[str, Any]] = field(default_factory=list)
+    #: a baseline run by the human driver (cosim/human_driver.py), not the minimum-time one
+    human: bool = False
+
+    @property
+    def driver(self) -> DriverKind:
+        """Who drove: ``"advised"``, ``"minimum-time"`` or ``"human"``."""
+        if self.advised:
+            return "advised"
+        return "human" if self.human else "minimum-time"
 
     @property
     def sim_s(self) -> float:
@@ -224,17 +235,24 @@ class LineResult:
             played.append(entry)
         return played
 
-    def kpis(self, baseline: LineResult | None = None) -> dict[str, Any]:
+    def kpis(
+        self, baseline: LineResult | None = None, human: LineResult | None = None
+    ) -> dict[str, Any]:
         """The KPI object of ``railpilot line simulate --json`` (cosim/kpis.py), the
-        baseline's figures beside it if given."""
-        return kpi_object(self, baseline)
+        figures of the minimum-time ``baseline`` and of the ``human`` one beside it if
+        given."""
+        return kpi_object(self, baseline, human)
 
 
 def line_train(
-    scenario: LineScenario, service: Service, advised: bool
+    scenario: LineScenario,
+    service: Service,
+    advised: bool,
+    human: HumanDriving | None = None,
 ) -> tuple[TrainDriver, OnboardConfig]:
     """One train of ``scenario``: its driver (powered on ``POWER_ON_LEAD_S`` before its
-    first departure) and its onboard unit's link configuration."""
+    first departure; a baseline's driven by ``human`` if given) and its onboard unit's
+    link configuration."""
     power_on = max(service.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
     driver = TrainDriver(
         scenario.line,
@@ -244,6 +262,7 @@ def line_train(
         advised=advised,
         margin_kmh=scenario.margin_kmh,
         model=scenario.train_model,
+        human=human,
     )
     config = OnboardConfig(
         train_id=service.train_id,
@@ -269,21 +288,32 @@ def run_line(
     advised: bool = True,
     until_s: float | None = None,
     on_watch: Callable[[LinkSim, float], None] | None = None,
+    driver: DriverKind | None = None,
+    human: HumanDriving = DEFAULT_HUMAN,
 ) -> LineResult:
-    """Run ``scenario`` (its seed unless ``seed``) with the advised driving system, or the
-    baseline (``advised=False``), to its end (or ``until_s``)."""
+    """Run ``scenario`` (its seed unless ``seed``) to its end (or ``until_s``) with the
+    ``driver``: ``"advised"`` (the driving system), ``"minimum-time"`` or ``"human"``
+    (the baselines, docs/line-run.md; the human driver's habits ``human``). Without
+    ``driver``, ``advised`` chooses: True the driving system, False the minimum-time
+    baseline."""
+    if driver is None:
+        driver = "advised" if advised else "minimum-time"
+    elif driver not in DRIVERS:
+        raise ConfigError("driver", driver, f"one of {', '.join(DRIVERS)}")
+    elif not advised and driver == "advised":
+        raise ConfigError("advised", advised, "True (or no driver) with driver='advised'")
+    advised = driver == "advised"
+    human_driver = human if driver == "human" else None
     seed = scenario.seed if seed is None else seed
     line = scenario.line
     epoch = scenario.epoch_s
     drivers: dict[int, TrainDriver] = {}
     trains = []
     for service in scenario.services:
-        driver, config = line_train(scenario, service, advised)
-        drivers[service.train_id] = driver
+        train, config = line_train(scenario, service, advised, human_driver)
+        drivers[service.train_id] = train
         trains.append(
-            SimTrain(
-                config, driver, driver.power_on_s, driver.on_event, driver.planned_curve_report
-            )
+            SimTrain(config, train, train.power_on_s, train.on_event, train.planned_curve_report)
         )
     keys = line_keys(scenario, seed)
     # the ground keeps its TSRs, deliveries and audit log in a store, as the live ground
@@ -330,6 +360,7 @@ def run_line(
         {i: sorted(endpoint.active_tsrs) for i, endpoint in sim.onboard.items()},
         end,
         retiming=retimings,
+        human=human_driver is not None,
     )
 
 
