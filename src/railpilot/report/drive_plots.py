@@ -14,6 +14,19 @@ from railpilot.sim.result import SimResult
 from railpilot.units import mps_to_kmh
 
 
+def _plot_replans(ax: Axes, outcome: DriveOutcome, label: str) -> None:
+    """Each re-planned curve, dashed, the first one labelled."""
+    for i, replan in enumerate(outcome.replans):
+        ax.plot(
+            outcome.km_post(replan.plan.s_m + replan.from_m) / 1000.0,
+            mps_to_kmh(replan.plan.speed_mps),
+            color="tab:green",
+            lw=1.0,
+            ls="--",
+            label=label if i == 0 else None,
+        )
+
+
 def speed_figure(outcome: DriveOutcome) -> Figure:
     """Speed over km post: static limits, MRSP (TSRs, targets), planned and driven curves."""
     fig = Figure(figsize=(11, 5.5), constrained_layout=True)
@@ -39,15 +52,7 @@ def speed_figure(outcome: DriveOutcome) -> Figure:
             label="intervention (full service)" if i == 0 else None,
         )
     ax.plot(x_plan, mps_to_kmh(plan.speed_mps), color="tab:green", lw=1.5, label="planned")
-    for i, replan in enumerate(outcome.replans):
-        ax.plot(
-            outcome.km_post(replan.plan.s_m + replan.from_m) / 1000.0,
-            mps_to_kmh(replan.plan.speed_mps),
-            color="tab:green",
-            lw=1.0,
-            ls="--",
-            label="re-planned (TSR, target point)" if i == 0 else None,
-        )
+    _plot_replans(ax, outcome, "re-planned (TSR, target point)")
     r = outcome.result
     ax.plot(
         outcome.km_post(r["position_m"]) / 1000.0,
@@ -217,15 +222,7 @@ def _speed_panel(
         alpha=0.55,  # wide and pale: the driven curve stays visible where it follows
         label="planned",
     )
-    for i, replan in enumerate(outcome.replans):
-        ax.plot(
-            outcome.km_post(replan.plan.s_m + replan.from_m) / 1000.0,
-            mps_to_kmh(replan.plan.speed_mps),
-            color="tab:green",
-            lw=1.0,
-            ls="--",
-            label="re-planned" if i == 0 else None,
-        )
+    _plot_replans(ax, outcome, "re-planned")
     speed_kmh = mps_to_kmh(r["speed_mps"])
     ax.plot(x_km, speed_kmh, color="tab:blue", lw=1.2, label="driven (head)")
     labelled_km: list[float] = []
