@@ -47,8 +47,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from railpilot.errors import ConfigError
-from railpilot.onboard.planner import DrivingTrain, SectionGrid, SpeedPlan
-from railpilot.units import G_MPS2, kmh_to_mps
+from railpilot.onboard.planner import DrivingTrain, SectionGrid, SpeedPlan, braking_envelope
+from railpilot.units import kmh_to_mps
 from railpilot.vehicle.traction import regen_force_max, traction_force_max
 
 
@@ -154,7 +154,7 @@ def human_curve(
     measures following it.
     """
     ceiling = _human_ceiling(sec.ceiling_mps, kmh_to_mps(human.margin_kmh) - planned_margin_mps)
-    envelope = _braking_envelope(train, sec, ceiling, stop_net_mps2)
+    envelope = braking_envelope(train, sec, ceiling, stop_net_mps2)
     coast = _coast_zone(sec, ceiling, envelope, human.coast_before_brake_m)
     speed = _forward(train, sec, ceiling, envelope, coast, human, release_s)
     mean = 0.5 * (speed[1:] + speed[:-1])
@@ -183,43 +183,6 @@ def _human_ceiling(ceiling: np.ndarray, extra_mps: float) -> np.ndarray:
         inner = ceiling[1:-1]
         out[1:-1] = np.maximum(inner - extra_mps, 0.5 * inner)
     return out
-
-
-def _coast_decel(train: DrivingTrain, speed_mps: float, line_w: float) -> float:
-    """Coasting deceleration [m/s^2] at ``speed_mps`` on the line resistance ``line_w``
-    [N/kN] (negative: the line accelerates the train), as the planner's."""
-    t = train.train
-    force = train.resistance_n(speed_mps) + line_w * t.mass_kg * G_MPS2 / 1000.0
-    return force / t.effective_mass_kg
-
-
-def _braking_envelope(
-    train: DrivingTrain, sec: SectionGrid, ceiling: np.ndarray, stop_net: float
-) -> np.ndarray:
-    """The backward braking curves to every lower ceiling and to the stop, with the
-    planning brake (planner.py ``_envelope`` without coasting: what the minimum-time
-    driver brakes with)."""
-    service = train.train.max_service_decel_mps2
-    brake = train.brake_mps2
-    n = ceiling.size
-    e = np.empty(n)
-    e[-1] = ceiling[-1]
-    to_stop = ceiling[-1] <= 0.0 and stop_net > 0.0
-    for i in range(n - 2, -1, -1):
-        v = e[i + 1]
-        coast = _coast_decel(train, v, 0.5 * (sec.line_w[i] + sec.line_w[i + 1]))
-        braking = coast + brake
-        if braking <= 0.0:
-            braking = coast + service  # a descent steeper than the planning brake
-        if to_stop and braking < stop_net:
-            braking = min(stop_net, coast + service)
-        back = math.sqrt(max(v * v + 2.0 * sec.dx_m * braking, 0.0))
-        if ceiling[i] <= back:
-            e[i] = ceiling[i]
-            to_stop = False
-        else:
-            e[i] = back
-    return e
 
 
 def _coast_zone(
@@ -273,7 +236,7 @@ def _forward(
     for i in range(n - 1):
         speed = v[i]
         cruise = ceiling[i + 1]
-        a_coast = _coast_decel(train, speed, 0.5 * (sec.line_w[i] + sec.line_w[i + 1]))
+        a_coast = train.coast_decel_mps2(speed, 0.5 * (sec.line_w[i] + sec.line_w[i + 1]))
         coasting = math.sqrt(max(speed * speed - 2.0 * dx * a_coast, 0.0))
         regen = regen_force_max(
             speed, loco.regen.max_force_n, loco.regen.max_power_w, loco.regen.fade_below_mps

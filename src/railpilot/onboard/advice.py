@@ -31,8 +31,7 @@ import numpy as np
 from railpilot.errors import ConfigError
 from railpilot.onboard.planner import DrivingTrain, SpeedPlan
 from railpilot.onboard.report import remaining_time_s
-from railpilot.units import G_MPS2, KMH_PER_MPS
-from railpilot.vehicle.resistance import davis_specific_resistance
+from railpilot.units import KMH_PER_MPS
 
 Mode = Literal["traction", "coast", "regen", "air"]
 
@@ -78,12 +77,6 @@ class Advice:
         return f"{what}, target {speed:.0f} km/h, {late}"
 
 
-def _coast_decel(train: DrivingTrain, v: float, line_w: float) -> float:
-    t = train.train
-    w = float(davis_specific_resistance(v * KMH_PER_MPS, t.davis_a0, t.davis_a1, t.davis_a2))
-    return (w + line_w) * t.mass_kg * G_MPS2 / 1000.0 / t.effective_mass_kg
-
-
 def advise(
     train: DrivingTrain,
     plan: SpeedPlan,
@@ -107,7 +100,7 @@ def advise(
     a_want = a_plan + (v_here - v_mps) / CORRECTION_S
     w = float(np.interp(s_m, s_grid, line_w))
     m_eff = train.train.effective_mass_kg
-    force = m_eff * (a_want + _coast_decel(train, v_mps, w))
+    force = m_eff * (a_want + train.coast_decel_mps2(v_mps, w))
     loco = train.locomotive
     remaining = remaining_time_s(plan, s_m)
     arrival = elapsed_s + remaining

@@ -158,6 +158,16 @@ class DrivingTrain:
         w = davis_specific_resistance(speed_mps * KMH_PER_MPS, t.davis_a0, t.davis_a1, t.davis_a2)
         return float(w) * t.mass_kg * G_MPS2 / 1000.0
 
+    def coast_decel_mps2(self, speed_mps: float, line_w: float) -> float:
+        """Coasting deceleration [m/s^2] at ``speed_mps`` [m/s] on the line resistance
+        ``line_w`` [N/kN] (negative: the line accelerates the train); the same arithmetic
+        as the compiled passes' (:func:`_coast_decel`)."""
+        t = self.train
+        w = float(
+            davis_specific_resistance(speed_mps * KMH_PER_MPS, t.davis_a0, t.davis_a1, t.davis_a2)
+        )
+        return (w + line_w) * t.mass_kg * G_MPS2 / 1000.0 / t.effective_mass_kg
+
     def coast_to_brake_speed_mps(self, v1_mps: float) -> float:
         """MARECO's ``vf(v1)`` [m/s]: below it braking pays, above it coasting does.
 
@@ -489,6 +499,16 @@ def target_stop_net(train: DrivingTrain) -> float:
     return TARGET_STOP_NET_SHARE * train.brake_mps2
 
 
+def braking_envelope(
+    train: DrivingTrain, sec: SectionGrid, ceiling: np.ndarray, stop_net_mps2: float = 0.0
+) -> np.ndarray:
+    """The backward braking curves [m/s] to every lower ``ceiling`` and to the stop, with
+    the planning brake and no coasting: the fastest run's envelope (``stop_net_mps2`` as
+    :func:`fastest`'s)."""
+    q = train.params()
+    return _envelope(q, sec.line_w, ceiling, np.inf, np.inf, sec.dx_m, stop_net_mps2)
+
+
 def fastest(train: DrivingTrain, sec: SectionGrid, stop_net_mps2: float = 0.0) -> SpeedPlan:
     """The fastest profile: full traction, the ceiling, the planning brake (to a stop at
     the end, at least ``stop_net_mps2`` [m/s^2] net: a target stop, ``target_stop_net``)."""
@@ -496,9 +516,8 @@ def fastest(train: DrivingTrain, sec: SectionGrid, stop_net_mps2: float = 0.0) -
         raise ConfigError("stop_net_mps2", stop_net_mps2, "a deceleration >= 0 [m/s^2]")
     top = float(sec.ceiling_mps.max())
     # the fastest run does not coast: vf above every speed makes the envelope all braking
-    q = train.params()
-    env = _envelope(q, sec.line_w, sec.ceiling_mps, np.inf, np.inf, sec.dx_m, stop_net_mps2)
-    v = _forward(q, sec.line_w, sec.ceiling_mps, env, top, sec.dx_m)
+    env = braking_envelope(train, sec, sec.ceiling_mps, stop_net_mps2)
+    v = _forward(train.params(), sec.line_w, sec.ceiling_mps, env, top, sec.dx_m)
     return replace(_result(train, sec, v, None, None, None), strategy="fastest")
 
 
