@@ -127,6 +127,22 @@ class Kpi:
 # ---------------------------------------------------------------- computed from a run
 
 
+def _trackside_count(name: str, label: str, records: str) -> Kpi:
+    """A safety KPI that counts what the trackside saw: the run's ``records`` list (its
+    events document lists each under that key), 0 in a correct run."""
+    return Kpi(
+        name,
+        label,
+        lambda r: len(getattr(r, records)),
+        (Figure("", label),),
+        safety=True,
+        against_baseline=True,
+        count_runs_not_zero=True,
+        text=str,
+        records=(records, lambda r: getattr(r, records)),
+    )
+
+
 def _conformity(actual_s: float, planned_s: float) -> float:
     return (actual_s - planned_s) / planned_s * 100.0
 
@@ -346,39 +362,9 @@ KPIS: tuple[Kpi, ...] = (
         against_baseline=True,
         text=str,
     ),
-    Kpi(
-        "tsr_violations",
-        "TSR violations",
-        lambda r: len(r.tsr_violations),
-        (Figure("", "TSR violations"),),
-        safety=True,
-        against_baseline=True,
-        count_runs_not_zero=True,
-        text=str,
-        records=("tsr_violations", lambda r: r.tsr_violations),
-    ),
-    Kpi(
-        "target_points_passed",
-        "target points passed",
-        lambda r: len(r.signals_passed_at_red),
-        (Figure("", "target points passed"),),
-        safety=True,
-        against_baseline=True,
-        count_runs_not_zero=True,
-        text=str,
-        records=("signals_passed_at_red", lambda r: r.signals_passed_at_red),
-    ),
-    Kpi(
-        "overspeeds",
-        "overspeeds above the static limits",
-        lambda r: len(r.overspeeds),
-        (Figure("", "overspeeds above the static limits"),),
-        safety=True,
-        against_baseline=True,
-        count_runs_not_zero=True,
-        text=str,
-        records=("overspeeds", lambda r: r.overspeeds),
-    ),
+    _trackside_count("tsr_violations", "TSR violations", "tsr_violations"),
+    _trackside_count("target_points_passed", "target points passed", "signals_passed_at_red"),
+    _trackside_count("overspeeds", "overspeeds above the static limits", "overspeeds"),
     Kpi(
         "max_overspeed_kmh",
         "worst overspeed",
