@@ -23,10 +23,10 @@ from railpilot.schema.fields import (
     NOT_GIVEN,
     FileTable,
     OutOfBounds,
+    PlainWords,
     Says,
     Unit,
     WhenMissing,
-    Words,
     says,
 )
 
@@ -79,7 +79,7 @@ MAX_DT_S = 1e-2
 WHOLE_SETTINGS = frozenset({"n_grid"})
 
 
-class EddyWords(Words):
+class EddyWords(PlainWords):
     """The eddy scenario's way: a value that is no number is "a number", nan "a finite
     number"; a number out of bounds is told the range in its unit; an unknown key is told
     the table's keys, sorted, and a value of the wrong kind for a table "a table of keys"."""
@@ -92,14 +92,6 @@ class EddyWords(Words):
     @staticmethod
     def number(fault: str, gt: float | None, ge: float | None, le: float | None, unit: str) -> str:
         return "a finite number"
-
-    @staticmethod
-    def whole(ge: float | None, le: float | None) -> str:
-        return "an integer"
-
-    @staticmethod
-    def string(non_empty: bool) -> str:
-        return "a string"
 
     @staticmethod
     def table(keys: Sequence[str]) -> str:

@@ -82,7 +82,24 @@ class Words:
 BOUND_FAULTS = frozenset({"greater_than", "greater_than_equal", "less_than", "less_than_equal"})
 
 
-class ScenarioWords(Words):
+class PlainWords(Words):
+    """A format that names a key's kind without its bounds: "an integer", "a string",
+    "a table"."""
+
+    @staticmethod
+    def whole(ge: float | None, le: float | None) -> str:
+        return "an integer"
+
+    @staticmethod
+    def string(non_empty: bool) -> str:
+        return "a string"
+
+    @staticmethod
+    def table(keys: Sequence[str]) -> str:
+        return "a table"
+
+
+class ScenarioWords(PlainWords):
     """The scenario files' way: a wrong type or nan is "a finite number", a number out of
     bounds "a number > 0"; unknown keys list the table's keys sorted."""
 
@@ -96,18 +113,6 @@ class ScenarioWords(Words):
         if fault in BOUND_FAULTS:
             return "a number " + bounds_words(gt, ge, le)
         return "a finite number"
-
-    @staticmethod
-    def whole(ge: float | None, le: float | None) -> str:
-        return "an integer"
-
-    @staticmethod
-    def string(non_empty: bool) -> str:
-        return "a string"
-
-    @staticmethod
-    def table(keys: Sequence[str]) -> str:
-        return "a table"
 
     @staticmethod
     def named_tables() -> str:

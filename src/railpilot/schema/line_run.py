@@ -9,13 +9,12 @@ railpilot.schema.operations' (the ground reads it, against the line).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
 from typing import Annotated, Any, Literal, Union
 
 from pydantic import BaseModel, ConfigDict, Field, Tag, TypeAdapter, create_model
 
 from railpilot.schema.channel import ChannelFileTable
-from railpilot.schema.fields import NOT_GIVEN, FileTable, Says, Unit, Words, number_words
+from railpilot.schema.fields import NOT_GIVEN, FileTable, PlainWords, Says, Unit, number_words
 from railpilot.schema.operations import OPERATIONS
 
 #: the train kinds a service may name
@@ -38,7 +37,7 @@ GROUND_RESTART = "ground_restart"
 TRAIN_ID = "the id of a train of the scenario"
 
 
-class LineRunWords(Words):
+class LineRunWords(PlainWords):
     """The line-run file's way: every number with its interval."""
 
     unknown_key = "one of the keys {keys}"
@@ -52,14 +51,6 @@ class LineRunWords(Words):
     @staticmethod
     def whole(ge: float | None, le: float | None) -> str:
         return f"an integer in [{ge}, {le}]"
-
-    @staticmethod
-    def string(non_empty: bool) -> str:
-        return "a string"
-
-    @staticmethod
-    def table(keys: Sequence[str]) -> str:
-        return "a table"
 
     @staticmethod
     def required(allowed: str) -> str:
