@@ -171,7 +171,8 @@ class LineResult:
 
     scenario: LineScenario
     seed: int
-    advised: bool
+    #: who drove: ``"advised"``, ``"minimum-time"`` or ``"human"``
+    driver: DriverKind
     drivers: Mapping[int, TrainRun]
     trace: dict[int, np.ndarray]  # train id -> rows (t [s], km post [m], speed [m/s])
     tsr_violations: list[TsrViolation]
@@ -195,15 +196,11 @@ class LineResult:
     live: LiveRunInfo | None = None
     #: the ground's re-timings (ground/online_retimer.py ``OnlineRetimer.log``)
     retiming: list[dict[str, Any]] = field(default_factory=list)
-    #: a baseline run by the human driver (cosim/human_driver.py), not the minimum-time one
-    human: bool = False
 
     @property
-    def driver(self) -> DriverKind:
-        """Who drove: ``"advised"``, ``"minimum-time"`` or ``"human"``."""
-        if self.advised:
-            return "advised"
-        return "human" if self.human else "minimum-time"
+    def advised(self) -> bool:
+        """Driven by the advised driving system (not a baseline)."""
+        return self.driver == "advised"
 
     @property
     def sim_s(self) -> float:
@@ -341,7 +338,7 @@ def run_line(
     return LineResult(
         scenario,
         seed,
-        advised,
+        driver,
         {i: TrainRun.of(driver) for i, driver in drivers.items()},
         traces,
         [TsrViolation(**seen) for seen in watch.trackside.tsr_violations],
@@ -360,7 +357,6 @@ def run_line(
         {i: sorted(endpoint.active_tsrs) for i, endpoint in sim.onboard.items()},
         end,
         retiming=retimings,
-        human=human_driver is not None,
     )
 
 

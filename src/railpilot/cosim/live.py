@@ -518,7 +518,7 @@ class _LiveRun:
         result = LineResult(
             self.scenario,
             self.seed,
-            True,
+            "advised",
             drivers,
             traces,
             [TsrViolation(**seen) for seen in self.trackside.tsr_violations],
