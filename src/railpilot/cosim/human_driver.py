@@ -46,6 +46,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from railpilot.checks import check_number
 from railpilot.errors import ConfigError
 from railpilot.onboard.planner import DrivingTrain, SectionGrid, SpeedPlan, braking_envelope
 from railpilot.units import kmh_to_mps
@@ -108,15 +109,24 @@ class HumanDriving:
             ("cycle_release_below_kmh", 1.0, 80.0),
             ("cycle_min_release_kmh", 0.0, 120.0),
         ):
-            value = getattr(self, name)
-            if not (isinstance(value, int | float) and math.isfinite(value)):
-                raise ConfigError(name, value, f"a number in [{low:g}, {high:g}]")
-            if not low <= value <= high:
-                raise ConfigError(name, value, f"a number in [{low:g}, {high:g}]")
+            allowed = f"a number in [{low:g}, {high:g}]"
+            check_number(
+                name,
+                getattr(self, name),
+                minimum=low,
+                maximum=high,
+                allowed=allowed,
+                error=ConfigError,
+            )
         for name in ("cycle_decel_mps2", "cycle_run_up_mps2"):
-            a = getattr(self, name)
-            if not (isinstance(a, int | float) and math.isfinite(a) and 0.0 < a <= 0.5):
-                raise ConfigError(name, a, "an acceleration in (0, 0.5] m/s^2")
+            check_number(
+                name,
+                getattr(self, name),
+                positive=True,
+                maximum=0.5,
+                allowed="an acceleration in (0, 0.5] m/s^2",
+                error=ConfigError,
+            )
 
 
 #: in a coasting zone the driver coasts while the train keeps above this share of the
