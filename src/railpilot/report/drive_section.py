@@ -4,7 +4,6 @@ driven, its figure of brake cycles, forces and coupler forces
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -25,11 +24,6 @@ class DrivenSection:
     outcome: DriveOutcome
     running_time_s: float
     command: str
-
-
-def _number(value: Any) -> float:
-    """A metric as a float (nan where the run has none)."""
-    return math.nan if value is None else float(value)
 
 
 def drive_cycles_section(driven: list[DrivenSection], out_dir: Path) -> Reproduction:
@@ -53,7 +47,7 @@ def drive_cycles_section(driven: list[DrivenSection], out_dir: Path) -> Reproduc
                 m["running_time_s"],
                 int(m["air_brake_applications"]),
                 int(m["air_brake_releases"]),
-                _number(m["min_recharge_margin_s"]),
+                m["min_recharge_margin_s"],  # nan where no release was followed by an application
                 m["energy_traction_kwh"],
                 m["energy_traction_against_air_kwh"],
                 m["max_coupler_tension_kn"],
