@@ -10,6 +10,7 @@ counted.
 from __future__ import annotations
 
 import ast
+import functools
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -45,12 +46,18 @@ def _imports(tree: ast.Module, *, in_functions: bool) -> Iterator[ast.Import | a
             todo.extend(ast.iter_child_nodes(node))
 
 
+@functools.cache
+def _modules() -> dict[str, tuple[Path, ast.Module]]:
+    """Every module of the package by name: its file and its syntax tree (parsed once;
+    the four graph tests read the same source)."""
+    return {_module_name(p): (p, ast.parse(p.read_text())) for p in PACKAGE.rglob("*.py")}
+
+
 def _graph(*, in_functions: bool = False) -> dict[str, set[str]]:
-    modules = {_module_name(p): p for p in PACKAGE.rglob("*.py")}
+    modules = _modules()
     graph: dict[str, set[str]] = {m: set() for m in modules}
-    for name, path in modules.items():
+    for name, (path, tree) in modules.items():
         package = name if path.name == "__init__.py" else name.rpartition(".")[0]
-        tree = ast.parse(path.read_text())
         for node in _imports(tree, in_functions=in_functions):
             if isinstance(node, ast.Import):
                 targets = [a.name for a in node.names]
