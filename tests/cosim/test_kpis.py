@@ -10,7 +10,7 @@ import dataclasses
 
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from railpilot.cosim import kpis as table
@@ -166,6 +166,8 @@ def test_a_figures_spread_is_numpys(values, first_seed):
     assert spread["max_seed"] == seeds[values.index(max(values))]
 
 
+# each example draws a whole KPI object per run: 40 cover every swept figure many times
+@settings(max_examples=40)
 @given(st.data(), st.integers(1, 8))
 def test_a_sweep_summarises_every_swept_figure_and_counts_the_safety_runs(data, runs):
     seeds = list(range(runs))

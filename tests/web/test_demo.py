@@ -20,7 +20,7 @@ def test_it_is_a_dashboard_source(ground: DemoGround) -> None:
 
 
 def test_the_same_seed_gives_the_same_line() -> None:
-    a, b = DemoGround(10, seed=4), DemoGround(10, seed=4)
+    a, b = (DemoGround(10, seed=4, warmup_s=MIN_WARMUP_S) for _ in range(2))
     a.advance(30.0)
     b.advance(30.0)
     assert json.dumps(a.snapshot(a.now_s())) == json.dumps(b.snapshot(b.now_s()))
