@@ -63,10 +63,31 @@ def _collected(*args: str) -> dict[str, bool]:
     return found
 
 
-# a collection of the whole web package and more: slow itself
+def _is_under(nodeid: str, target: str) -> bool:
+    """Is the test ``nodeid`` the ``target`` (a file, a test) or one of its cases?"""
+    return nodeid == target or nodeid.startswith((f"{target}::", f"{target}["))
+
+
+def _marked(session: pytest.Session, *targets: str) -> dict[str, bool]:
+    """The tests under ``targets`` with whether each is marked slow: read from this
+    session's own collection when it holds every target (``make test`` collects the
+    whole suite on every worker), else collected afresh (:func:`_collected`)."""
+    mine = {
+        item.nodeid: item.get_closest_marker("slow") is not None
+        for item in session.items
+        if any(_is_under(item.nodeid, t) for t in targets)
+    }
+    if all(any(_is_under(test, t) for test in mine) for t in targets):
+        return mine
+    return _collected(*targets)
+
+
+# a collection of the whole web package and more, when this session has not collected them
 @pytest.mark.slow
-def test_every_browser_and_live_test_is_slow_and_the_quick_lane_keeps_the_rest() -> None:
-    marked = _collected(*BROWSER_AND_LIVE, "tests/cosim/test_live.py")
+def test_every_browser_and_live_test_is_slow_and_the_quick_lane_keeps_the_rest(
+    request: pytest.FixtureRequest,
+) -> None:
+    marked = _marked(request.session, *BROWSER_AND_LIVE, "tests/cosim/test_live.py")
     slow = {test for test, is_slow in marked.items() if is_slow}
     assert slow, "the slow set is empty"
     for target in BROWSER_AND_LIVE:

@@ -13,7 +13,7 @@ from collections.abc import Iterator
 import pytest
 from starlette.testclient import TestClient
 
-from railpilot.cosim.demo_ground import MIN_WARMUP_S, DemoGround
+from railpilot.cosim.demo_ground import DemoGround
 from railpilot.errors import ConfigError
 from railpilot.line.loader import load_line
 from railpilot.line.model import DOWN, UP
@@ -89,9 +89,8 @@ def test_sliced_json_is_the_same_text(obj: object) -> None:
     assert spent >= 0.0
 
 
-def test_sliced_json_of_a_snapshot_is_the_same_text() -> None:
+def test_sliced_json_of_a_snapshot_is_the_same_text(ground: DemoGround) -> None:
     # 24 trains: every list of the snapshot is cut into several slices of 7
-    ground = DemoGround(24, seed=1, warmup_s=MIN_WARMUP_S)
     snapshot = ground.snapshot(ground.now_s())
     assert len(snapshot["trains"]) > 3 * 7
     text, _ = asyncio.run(dumps_sliced(snapshot, slice_items=7))
@@ -105,10 +104,8 @@ def test_sliced_json_refuses_nan_as_the_page_would() -> None:
 
 
 @pytest.fixture
-def client() -> Iterator[TestClient]:
-    app = create_app(
-        DemoGround(24, seed=0, warmup_s=MIN_WARMUP_S), token=TOKEN, allowed_hosts=["testserver"]
-    )
+def client(ground: DemoGround) -> Iterator[TestClient]:
+    app = create_app(ground, token=TOKEN, allowed_hosts=["testserver"])
     with TestClient(app) as c:
         yield c
 
