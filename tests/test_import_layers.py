@@ -11,6 +11,8 @@ from __future__ import annotations
 
 import ast
 import functools
+import subprocess
+import sys
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -162,3 +164,17 @@ def test_only_the_command_line_runs_the_rigs() -> None:
         if t.startswith("railpilot.rigs")
     }
     assert offenders == set()
+
+
+def test_the_command_line_starts_without_the_simulation_core() -> None:
+    """Every ``railpilot`` command builds the whole parser first: building it must not
+    import the simulation core (numba's compiler, scipy), which would cost each command
+    (a ground server, a decode of one frame, ``--help``) most of a second before it starts."""
+    probe = (
+        "import sys; from railpilot.cli import build_parser; build_parser(); "
+        "print(' '.join(sorted({'numba', 'scipy'} & {m.partition('.')[0] for m in sys.modules})))"
+    )
+    done = subprocess.run(
+        [sys.executable, "-c", probe], capture_output=True, text=True, check=True, timeout=60
+    )
+    assert done.stdout.split() == []

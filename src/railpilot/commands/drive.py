@@ -18,7 +18,7 @@ if TYPE_CHECKING:
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
-    from railpilot.onboard.drive import TRAINS
+    from railpilot.onboard.shipped_trains import SHIPPED_TRAINS
 
     p = subparsers.add_parser(
         "drive",
@@ -26,7 +26,7 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         description=__doc__,
     )
     p.add_argument("line", help="a shipped line ('heavy-haul', 'metro') or a line file")
-    p.add_argument("--train", default="heavy-haul-loaded", choices=sorted(TRAINS))
+    p.add_argument("--train", default="heavy-haul-loaded", choices=sorted(SHIPPED_TRAINS))
     p.add_argument("--from", dest="from_station", type=int, required=True, help="station id")
     p.add_argument("--to", dest="to_station", type=int, required=True, help="station id")
     times = p.add_mutually_exclusive_group()

@@ -155,7 +155,7 @@ class Service:
 
     train_id: int
     number: str
-    kind: str  # a train preset name (onboard/drive.py TRAINS)
+    kind: str  # a shipped train (onboard/shipped_trains.py)
     stops: tuple[Stop, ...]
     min_dwell_s: float = 60.0
 

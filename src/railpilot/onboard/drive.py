@@ -53,6 +53,7 @@ from railpilot.onboard.planner import (
     section,
     target_stop_net,
 )
+from railpilot.onboard.shipped_trains import SHIPPED_TRAINS
 from railpilot.onboard.supervision import SupervisionCurve, supervision_curve
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.scenario.consist_file import consist_preset
@@ -127,28 +128,20 @@ def preset_of_consist(name: str, category: str, consist: Consist) -> TrainPreset
 
 def heavy_haul_loaded() -> TrainPreset:
     """The 10,000 t coal train: one HXD1 and 105 loaded C80 wagons (docs/consist.md)."""
-    return preset_of_consist(
-        "heavy-haul-loaded", "freight_loaded", consist_preset("heavy-haul-10kt")
-    )
+    return train_preset("heavy-haul-loaded")
 
 
 def heavy_haul_empty() -> TrainPreset:
     """The same train returning empty: one HXD1 and 105 C80 wagons at their tare; the
     heavy-haul line's ``freight_empty`` limits."""
-    return preset_of_consist(
-        "heavy-haul-empty", "freight_empty", consist_preset("heavy-haul-10kt-empty")
-    )
-
-
-#: the trains ``railpilot drive --train`` knows
-TRAINS = {"heavy-haul-loaded": heavy_haul_loaded, "heavy-haul-empty": heavy_haul_empty}
+    return train_preset("heavy-haul-empty")
 
 
 def train_preset(name: str) -> TrainPreset:
-    factory = TRAINS.get(name)
-    if factory is None:
-        raise ConfigError("--train", name, f"one of {', '.join(TRAINS)}")
-    return factory()
+    shipped = SHIPPED_TRAINS.get(name)
+    if shipped is None:
+        raise ConfigError("--train", name, f"one of {', '.join(SHIPPED_TRAINS)}")
+    return preset_of_consist(name, shipped.category, consist_preset(shipped.consist))
 
 
 @dataclass(frozen=True)
