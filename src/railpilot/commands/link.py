@@ -16,7 +16,6 @@ import json
 import logging
 import math
 import os
-import secrets
 import signal
 import socket
 import stat
@@ -24,7 +23,7 @@ import sys
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
-from typing import Any, TextIO
+from typing import TYPE_CHECKING, Any, TextIO
 
 from railpilot.commands._common import json_line, log, print_json
 from railpilot.errors import ConfigError
@@ -35,6 +34,9 @@ from railpilot.link.decode_report import report_dict, report_text
 from railpilot.link.errors import LinkConfigError
 from railpilot.link.hex_text import DecodeInputError, holds_frame_start, looks_hex, parse_hex
 from railpilot.units import kmh_to_mps, mps_to_kmh
+
+if TYPE_CHECKING:
+    from railpilot.web.token import DispatcherToken
 
 DEFAULT_PORT = 7400
 DEFAULT_ADMIN_PORT = 7401
@@ -266,7 +268,17 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
         "--dispatcher-token",
         metavar="TOKEN",
         help="token the dashboard asks for to set or cancel TSRs, at least 16 characters "
-        "[a random one, printed at start]",
+        "(visible to other users in the process list: prefer RAILPILOT_TOKEN or "
+        "--token-file) [RAILPILOT_TOKEN, else --token-file, else a random one printed at "
+        "start]",
+    )
+    p.add_argument(
+        "--token-file",
+        type=Path,
+        metavar="PATH",
+        help="read the dispatcher token from this file, which only its owner may read "
+        "(mode 0600); when missing, it is created with a new token once the server is up, "
+        "so the same token serves after a restart (RAILPILOT_TOKEN, when set, comes first)",
     )
     p.add_argument(
         "--line",
@@ -616,13 +628,15 @@ def _load_line(name: str) -> Any:
         raise ConfigError("--line", name, f"a line that loads ({exc})") from None
 
 
-def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
-    """Check the dashboard's options before anything starts: ``(token, generated)``, or
-    None without ``--http-port`` (then the other dashboard options are refused)."""
+def _dashboard_options(args: argparse.Namespace) -> tuple[str, DispatcherToken] | None:
+    """Check the dashboard's options before anything starts: ``(token, where the token
+    comes from)``, or None without
+    ``--http-port`` (then the other dashboard options are refused)."""
     if args.http_port is None:
         for option, value, default in (
             ("--http-host", args.http_host, DEFAULT_HTTP_HOST),
             ("--dispatcher-token", args.dispatcher_token, None),
+            ("--token-file", args.token_file, None),
         ):
             if value != default:
                 shown = "<hidden>" if option == "--dispatcher-token" else value
@@ -631,7 +645,7 @@ def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
     if not 0 <= args.http_port <= 65535:
         raise ConfigError("--http-port", args.http_port, "0..65535 (0: a free one)")
     require_extra("web", "--http-port", args.http_port)
-    from railpilot.web.app import MIN_TOKEN_CHARS
+    from railpilot.web.token import dispatcher_token
 
     if args.http_host not in HTTP_HOSTS:
         raise ConfigError(
@@ -640,17 +654,9 @@ def _dashboard_options(args: argparse.Namespace) -> tuple[str, bool] | None:
             f"a loopback host name ({', '.join(HTTP_HOSTS)}): the dashboard is not to be "
             "reached from other machines yet (docs/dashboard.md)",
         )
-    token = args.dispatcher_token
-    generated = token is None
-    if token is None:
-        token = secrets.token_urlsafe(16)
-    elif len(token) < MIN_TOKEN_CHARS or any(c.isspace() or not c.isprintable() for c in token):
-        raise ConfigError(
-            "--dispatcher-token",
-            "<hidden>",
-            f"at least {MIN_TOKEN_CHARS} printable characters without spaces",
-        )
-    return token, generated
+    # --dispatcher-token, else RAILPILOT_TOKEN, else --token-file, else a random one
+    token = dispatcher_token(args.dispatcher_token, os.environ, args.token_file)
+    return token.value, token
 
 
 async def _start_dashboard(
@@ -667,12 +673,17 @@ async def _start_dashboard(
         raise ConfigError("--http-port", args.http_port, exc.allowed) from None
 
 
-def _print_dashboard(args: argparse.Namespace, port: int, token: str, generated: bool) -> None:
-    """The dashboard's address, once it shows the ground (and the token when it was made
-    up here: it is printed once, never logged)."""
-    shown = token if generated else "(the one given with --dispatcher-token)"
+def _print_dashboard(
+    args: argparse.Namespace, port: int, token: str, origin: DispatcherToken
+) -> None:
+    """The dashboard's address, once it shows the ground, and where its token is (the
+    token itself when it was made up here and kept nowhere: printed once, never logged).
+    A new token file is written here, so a start that fails leaves none behind."""
+    origin.save()
     print(
-        f"dashboard: http://{args.http_host}:{port}/  token: {shown}", file=sys.stderr, flush=True
+        f"dashboard: http://{args.http_host}:{port}/  token: {origin.shown()}",
+        file=sys.stderr,
+        flush=True,
     )
 
 

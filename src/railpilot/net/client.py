@@ -7,9 +7,13 @@ protection). The adapter:
 * connects, hands ``connection_made`` to the core (which registers), and on every loss
   reconnects after ``endpoint.reconnect_delay_s(rng.random())`` - exponential backoff with
   jitter from a seeded generator, reset by a successful registration (docs/protocol.md 9);
-* refreshes the running info from a :class:`Trajectory` before every tick; the core sends
-  it every cycle while registered and answers time checks, TSRs (extended by one train
-  length - the core does the extension), target points and dispatch commands itself;
+* refreshes the running info from a :class:`Trajectory` before every tick, and when the
+  registration is accepted, so that the first running info of every connection leaves at
+  once with where the train is then; the core sends it every cycle while registered and
+  answers time checks, TSRs (extended by one train length - the core does the extension),
+  target points and dispatch commands itself;
+* writes the summary of the frame rejections it held back when their window ends (its
+  timer wakes for it: :class:`~railpilot.net.rejections.RejectionLog`);
 * closes the socket on ``LinkFailed`` (the core has already given up on the link);
 * on shutdown deregisters (MANUAL_SHUTDOWN), waits a bounded time for the confirmation,
   then closes.
@@ -331,7 +335,15 @@ class OnboardClient:
 
     def _on_data(self, data: bytes) -> None:
         now = self.clock()
+        before = self.endpoint.state
         self.endpoint.receive_data(data, now)
+        if self.endpoint.state is OnboardState.REGISTERED and before is not OnboardState.REGISTERED:
+            # Registration accepted: the first running info leaves in this same write, with
+            # where the train is now (protocol.md 7), on every connection. Left to the timer
+            # it would wait for the next tick, up to the scheduler's longest wait on a
+            # first connection, where no running info is known yet.
+            self._refresh_running_info(now)
+            self.endpoint.tick(now)
         self._after(now)
 
     def _on_connection_lost(self, exc: Exception | None) -> None:
@@ -360,9 +372,17 @@ class OnboardClient:
     # --- scheduler ----------------------------------------------------------------------------
 
     def next_deadline_s(self) -> float | None:
-        return self.endpoint.next_deadline_s()
+        deadlines = [self.endpoint.next_deadline_s(), self._rejections.next_deadline_s()]
+        return min((d for d in deadlines if d is not None), default=None)
 
     def on_tick(self, now_s: float) -> None:
+        self._refresh_running_info(now_s)
+        self.endpoint.tick(now_s)
+        self._rejections.tick(now_s, train=self.config.train_id)
+        self._after(now_s, reschedule=False)
+
+    def _refresh_running_info(self, now_s: float) -> None:
+        """Give the core where the trajectory puts the train at ``now_s``."""
         assert self._t0_s is not None
         position, speed = self.trajectory.state(now_s - self._t0_s)
         c = self.config
@@ -376,8 +396,6 @@ class OnboardClient:
                 position,
             )
         )
-        self.endpoint.tick(now_s)
-        self._after(now_s, reschedule=False)
 
     def _after(self, now_s: float, *, reschedule: bool = True) -> None:
         data = self.endpoint.data_to_send()

@@ -8,7 +8,11 @@ back in one summary line when the window ends and when the connection closes. Th
 counters (``LinkCounters.rejected``) stay exact whatever is logged; the summary's numbers
 are exact too.
 
-Pure bookkeeping: time is passed in, the logger is given; nothing here reads a clock.
+Pure bookkeeping: time is passed in, the logger is given; nothing here reads a clock. A
+window ends when something brings a time at or past its end: the next rejection (of any
+check), or :meth:`RejectionLog.tick` from the host's timer, which
+:meth:`RejectionLog.next_deadline_s` tells when to fire. A peer that floods and then falls
+silent is thus summarised when its window ends, not only when the connection closes.
 """
 
 from __future__ import annotations
@@ -59,10 +63,9 @@ class RejectionLog:
         """One rejected frame: logged in full, or counted for the window's summary."""
         check = event.check.value
         self.total[check] += 1
+        self.tick(now_s, **context)
         window = self._windows.get(check)
-        if window is None or now_s - window.started_s >= self._interval_s:
-            if window is not None:
-                self._summarise(check, window, **context)
+        if window is None:
             window = self._windows[check] = _Window(now_s)
         if window.logged < self._burst:
             window.logged += 1
@@ -80,6 +83,20 @@ class RejectionLog:
         else:
             window.suppressed += 1
             self.suppressed[check] += 1
+
+    def tick(self, now_s: float, **context: object) -> None:
+        """Close every window that has ended by ``now_s``, with its summary line if it held
+        rejections back; the next rejection of that check opens a new window."""
+        for check, window in sorted(self._windows.items()):
+            if now_s - window.started_s >= self._interval_s:
+                self._summarise(check, window, **context)
+                del self._windows[check]
+
+    def next_deadline_s(self) -> float | None:
+        """When the earliest window holding rejections back ends (its summary is due), or
+        None when no summary is pending: the host's timer calls :meth:`tick` then."""
+        ends = [w.started_s + self._interval_s for w in self._windows.values() if w.suppressed]
+        return min(ends, default=None)
 
     def close(self, **context: object) -> None:
         """The connection is gone: summarise every open window, then the exact totals."""

@@ -189,12 +189,14 @@ class GroundConnection(asyncio.Protocol):
     # --- scheduler --------------------------------------------------------------------------
 
     def next_deadline_s(self) -> float | None:
-        return self.endpoint.next_deadline_s()
+        deadlines = [self.endpoint.next_deadline_s(), self.rejections.next_deadline_s()]
+        return min((d for d in deadlines if d is not None), default=None)
 
     def on_tick(self, now_s: float) -> None:
         if self._lost:
             return
         self.endpoint.tick(now_s)
+        self.rejections.tick(now_s, train=self.endpoint.train_id, peer=self.peer)
         self._after(now_s, reschedule=False)
 
     # --- helpers ----------------------------------------------------------------------------

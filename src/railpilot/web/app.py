@@ -77,6 +77,7 @@ from starlette.websockets import WebSocket, WebSocketDisconnect
 
 from railpilot.errors import ConfigError
 from railpilot.gc_tuning import collection_paused
+from railpilot.web.token import MIN_TOKEN_CHARS
 
 from .source import DashboardSource
 
@@ -84,8 +85,6 @@ from .source import DashboardSource
 DEFAULT_HOST = "127.0.0.1"
 #: The host names the app answers to by default (those of DEFAULT_HOST).
 LOCAL_HOSTS = ("127.0.0.1", "localhost")
-#: Shortest dispatcher token [characters] (e.g. ``secrets.token_urlsafe(16)``: 22).
-MIN_TOKEN_CHARS = 16
 #: A snapshot goes out at least this often [s], and the source's version is looked at
 #: this often [s].
 PUSH_INTERVAL_S = 1.0
@@ -115,7 +114,6 @@ class Push:
 
 
 STATIC = Path(str(resources.files("railpilot.web") / "static"))
-
 
 def _dumps(obj: Any) -> str:
     """JSON as the page reads it (no NaN or infinity: a source bug shows here)."""
