@@ -52,7 +52,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         return int(args.func(args))
     except RailpilotError as exc:
         print(f"railpilot: error: {exc}", file=sys.stderr)
-        return 2
+        # bad input is 2; a run that could not finish says so with its own code
+        return int(getattr(exc, "exit_code", 2))
     except ModuleNotFoundError as exc:
         # An optional part a command reached without checking for it first: say which
         # extra installs it rather than show a traceback.

@@ -41,6 +41,13 @@ class ConfigError(RailpilotError, ValueError):
         super().__init__(_shorter_numbers(message))
 
 
+class RunFailed(RailpilotError):
+    """A run that cannot finish (its trains stand still for good): the command line says
+    why and exits 1, writing nothing."""
+
+    exit_code = 1
+
+
 class ScenarioError(ConfigError):
     """A scenario file is malformed (unknown key, wrong type, out of range)."""
 

@@ -62,6 +62,13 @@ def m_to_km_post(position_m: Num) -> Num:
     return position_m / 1000.0
 
 
+def hms(duration_s: float) -> str:
+    """``duration_s`` [s], rounded to the second, as ``h:mm:ss`` (a time from a run's
+    start in messages a person reads)."""
+    whole = round(duration_s)
+    return f"{whole // 3600}:{whole % 3600 // 60:02d}:{whole % 60:02d}"
+
+
 def specific_to_force_n(specific_n_per_kn: Num, mass_kg: float) -> Num:
     """Force [N] of a specific force [N/kN] on a train of ``mass_kg`` [kg].
 

@@ -148,9 +148,13 @@ def _run(args: argparse.Namespace) -> int:
     _check_on_line(line, args.tsr, [(t.start_m, t.end_m) for t in tsrs], "--tsr")
     _check_on_line(line, args.target, [(t.signal_m, t.signal_m) for t in targets], "--target")
     if args.timetable is not None:
+        from railpilot.cosim.scenario import check_timetable
         from railpilot.onboard.timetable import load_timetable
 
-        sections = load_timetable(args.timetable).between(args.from_station, args.to_station)
+        timetable = load_timetable(args.timetable)
+        driven = (args.from_station, args.to_station)
+        check_timetable(timetable.sections, line, preset.name, args.margin, driven)
+        sections = timetable.between(*driven)
         return _run_timetable(args, line, preset, sections, tsrs, targets)
     outcome = drive(
         line,

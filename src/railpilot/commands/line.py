@@ -6,6 +6,8 @@ ground a server and each train a process over TCP (docs/line-run.md)."""
 from __future__ import annotations
 
 import argparse
+import contextlib
+import logging
 import math
 import time
 from collections.abc import Iterator
@@ -18,6 +20,15 @@ from railpilot.errors import ConfigError
 if TYPE_CHECKING:
     from railpilot.cosim.driver import DriverKind
     from railpilot.cosim.line_run import LineResult
+
+#: ``line run``'s ports: option -> what listens there (each field of cosim/live.py's
+#: LiveOptions is the option's name without its dashes, "_" for "-")
+LIVE_PORT_HELP = {
+    "--http-port": "the dashboard's port",
+    "--link-port": "the ground's link port, where the trains connect",
+    "--admin-port": "the ground's admin port, where the run's dispatcher speaks",
+    "--control-port": "the run's control port, where its ground and trains report",
+}
 
 #: the baselines ``line simulate`` can run (cosim/driver.py ``BASELINES``; not imported
 #: from there: the command line loads the simulation only when it runs one)
@@ -96,7 +107,8 @@ def register(subparsers: argparse._SubParsersAction) -> None:
     )
     p.add_argument("--seed", type=int, help="seed (default: the file's)")
     p.add_argument("--until-min", type=float, help="stop after this many simulated minutes")
-    p.add_argument("--http-port", type=int, default=0, help="dashboard port (default: a free one)")
+    for option, what in LIVE_PORT_HELP.items():
+        p.add_argument(option, type=int, default=0, help=f"{what} (default: a free one)")
     p.add_argument("--screenshot", type=Path, help="PNG of the dashboard taken during the run")
     p.add_argument(
         "--screenshot-at-min", type=float, help="when to take it [simulated min] (default: mid-run)"
@@ -108,6 +120,13 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "(time_distance.png, trace.csv, sections.csv, events.json, kpis.json)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument(
+        "--log-level",
+        default="warning",
+        choices=["debug", "info", "warning", "error"],
+        help="the ground's, the trains' and the run's log on stderr (debug: a process's "
+        "error with its traceback) [warning]",
+    )
     p.set_defaults(func=run_live_command)
 
 
@@ -162,8 +181,7 @@ def run_live_command(args: argparse.Namespace) -> int:
         raise ConfigError("--speedup", args.speedup, f"a time scale in [1, {MAX_SPEEDUP:g}]")
     if args.until_min is not None and not (math.isfinite(args.until_min) and args.until_min > 0):
         raise ConfigError("--until-min", args.until_min, "a number of minutes > 0")
-    if not 0 <= args.http_port <= 65535:
-        raise ConfigError("--http-port", args.http_port, "0..65535 (0: a free one)")
+    ports = _live_ports(args)
     minutes = scenario.duration_s / 60.0
     if args.screenshot_at_min is not None and not (
         math.isfinite(args.screenshot_at_min) and 0.0 < args.screenshot_at_min < minutes
@@ -174,6 +192,10 @@ def run_live_command(args: argparse.Namespace) -> int:
     until_s = None if args.until_min is None else args.until_min * 60.0
     at_s = None
     if args.screenshot is not None:
+        if not args.screenshot.parent.is_dir():  # found out before the run, not at its end
+            folder = f"there is no folder {args.screenshot.parent}"
+            allowed = f"a PNG file in a folder that exists ({folder})"
+            raise ConfigError("--screenshot", str(args.screenshot), allowed)
         end = scenario.duration_s if until_s is None else min(until_s, scenario.duration_s)
         at_s = end / 2.0 if args.screenshot_at_min is None else args.screenshot_at_min * 60.0
     elif args.screenshot_at_min is not None:
@@ -182,16 +204,29 @@ def run_live_command(args: argparse.Namespace) -> int:
     def announce(url: str, token: str) -> None:
         log(f"dashboard: {url}  token: {token}")
 
+    level = getattr(logging, args.log_level.upper())
     options = LiveOptions(
         speedup=args.speedup,
         seed=args.seed,
         until_s=until_s,
-        http_port=args.http_port,
+        http_port=ports["http_port"],
+        link_port=ports["link_port"],
+        admin_port=ports["admin_port"],
+        control_port=ports["control_port"],
         screenshot=args.screenshot,
         screenshot_at_s=at_s,
         on_dashboard=announce,
+        log_level=level,
     )
-    result = run_live(args.scenario, options)
+    try:
+        with _logging_to_stderr(level):
+            result = run_live(args.scenario, options)
+    except ConfigError as exc:
+        option = _port_option(exc.field)
+        if option is None:
+            raise
+        # a port the run could not listen on: named as the user gave it
+        raise ConfigError(option, exc.value, exc.allowed) from None
     out = result.kpis()
     if args.out is not None:
         out["files"] = _write_run(args.out, out, result, None)
@@ -200,6 +235,45 @@ def run_live_command(args: argparse.Namespace) -> int:
     else:
         _print_text(out)
     return 0
+
+
+def _live_ports(args: argparse.Namespace) -> dict[str, int]:
+    """``line run``'s ports as LiveOptions' fields, each in range and none given twice."""
+    ports: dict[str, int] = {}
+    given: dict[int, str] = {}
+    for option in LIVE_PORT_HELP:
+        field = option.removeprefix("--").replace("-", "_")
+        port = getattr(args, field)
+        if not 0 <= port <= 65535:
+            raise ConfigError(option, port, "0..65535 (0: a free one)")
+        if port in given:  # the second would find the first holding it
+            raise ConfigError(option, port, f"a port other than {given[port]}'s")
+        if port != 0:
+            given[port] = option
+        ports[field] = port
+    return ports
+
+
+@contextlib.contextmanager
+def _logging_to_stderr(level: int) -> Iterator[None]:
+    """The run's own log lines as its processes' (``ts=... level=... event=...``,
+    net/logfmt.py) for the command's length; the logging set up before is put back (the
+    command may run inside a program that has its own)."""
+    from railpilot.net.logfmt import setup_logging
+
+    logger = logging.getLogger("railpilot")
+    saved = (logger.handlers[:], logger.level, logger.propagate)
+    setup_logging(level)
+    try:
+        yield
+    finally:
+        logger.handlers[:], logger.level, logger.propagate = saved
+
+
+def _port_option(field: str) -> str | None:
+    """The ``line run`` option of a LiveOptions port field, None for any other field."""
+    option = "--" + field.replace("_", "-")
+    return option if option in LIVE_PORT_HELP else None
 
 
 def run(args: argparse.Namespace) -> int:

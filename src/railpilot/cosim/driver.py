@@ -98,6 +98,9 @@ FAILURE_STOP_ID = 2**32
 HELD_WITHIN_M = 10.0
 #: a train stopped this close to its station's stop point has arrived [m]
 ARRIVED_WITHIN_M = 50.0
+#: the onboard powers up, and the train is placed at its origin, this long before its
+#: first departure [s]
+POWER_ON_LEAD_S = 120.0
 #: the simulation core keeps a row a second (its cheap calling convention; the rows
 #: themselves are not used)
 RECORD_EVERY_S = 1.0
@@ -108,7 +111,7 @@ ODOMETRY_CYCLE_S = 1.0
 
 
 @lru_cache(maxsize=512)
-def _route(
+def shared_route(
     line: RailLine, preset_name: str, from_id: int, to_id: int, margin: float
 ) -> StationRoute:
     """One station pair's route, shared by every train of that kind (its line tables are
@@ -122,8 +125,36 @@ def _controller(
 ) -> PredictiveStop:
     """The precise-stop controller of a station pair, its line profile to the station
     (every stepper takes its own copy of the parameters; target stops retarget it)."""
-    route = _route(line, preset_name, from_id, to_id, margin)
+    route = shared_route(line, preset_name, from_id, to_id, margin)
     return stop_controller(route.preset, route.vehicle_line, route.length_m, dt_s)
+
+
+@lru_cache(maxsize=512)
+def fastest_run(
+    line: RailLine, preset_name: str, from_id: int, to_id: int, margin: float
+) -> SpeedPlan:
+    """The fastest run the onboard can plan between two stations (no TSR, no target
+    point): distance from the departure stop and speed."""
+    route = shared_route(line, preset_name, from_id, to_id, margin)
+    _, sec = route.section_from(route.mrsp_at(0.0), 0.0, 0.0)
+    return fastest(route.preset.driving, sec)
+
+
+@lru_cache(maxsize=1024)
+def planned_run(
+    line: RailLine,
+    preset_name: str,
+    from_id: int,
+    to_id: int,
+    margin: float,
+    running_time_s: float,
+) -> SpeedPlan:
+    """The plan the driving system departs on between two stations for ``running_time_s``
+    [s] when nothing restricts it (no TSR, no target point): distance from the departure
+    stop and speed."""
+    route = shared_route(line, preset_name, from_id, to_id, margin)
+    end_s, sec = route.section_from(route.mrsp_at(0.0), 0.0, 0.0)
+    return route.plan_to(end_s, sec, running_time_s, 0.0)
 
 
 @lru_cache(maxsize=512)
@@ -131,11 +162,9 @@ def planned_running_time_s(
     line: RailLine, preset_name: str, from_id: int, to_id: int, margin: float, supplement: float
 ) -> float:
     """The timetable's running time of a station pair [s]: the fastest run the onboard can
-    plan (no TSR, no target point) plus ``supplement``, rounded up to 10 s (the rule of
-    the shipped timetable, line/data/heavy_haul_timetable.toml)."""
-    route = _route(line, preset_name, from_id, to_id, margin)
-    _, sec = route.section_from(route.mrsp_at(0.0), 0.0, 0.0)
-    quickest = fastest(route.preset.driving, sec).running_time_s
+    plan (:func:`fastest_run`) plus ``supplement``, rounded up to 10 s (the rule of the
+    shipped timetable, line/data/heavy_haul_timetable.toml)."""
+    quickest = fastest_run(line, preset_name, from_id, to_id, margin).running_time_s
     return 10.0 * math.ceil(quickest * (1.0 + supplement) / 10.0)
 
 
@@ -162,6 +191,12 @@ class Service:
     @property
     def direction(self) -> TravelDirection:
         return UP if self.stops[-1].station > self.stops[0].station else TravelDirection.DOWN
+
+    @property
+    def power_on_s(self) -> float:
+        """When the onboard powers up and the train is placed at its origin [s since the
+        start of the run]."""
+        return max(self.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
 
 
 @dataclass
@@ -254,7 +289,7 @@ class TrainDriver:
         self._reporter = PlannedCurveReporter()
         #: when the human driver acts on what changed last (None: nothing to act on)
         self._react_at_s: float | None = None
-        static = _route(self.line, self.service.kind, *self._pair(0), self.margin_kmh).static
+        static = shared_route(self.line, self.service.kind, *self._pair(0), self.margin_kmh).static
         top = float(np.max(static.speeds_mps[np.isfinite(static.speeds_mps)]))
         self._safety_m = float(safety_distance_m(top, self.preset.train.max_service_decel_mps2))
 
@@ -288,6 +323,14 @@ class TrainDriver:
         # km_post_m's arithmetic on one float (asked for every train several times a second)
         head = running.route.departure_m + self._sign * stepper.position_m
         return float(head), stepper.speed_mps
+
+    def due_to_move(self, t: float) -> bool:
+        """Should the train be moving at ``t`` [s since the start] as far as its timetable
+        and the scenario go: on the line, not before its departure from the stop it
+        stands at, not stood by a failure. (A red signal ahead is the trackside's to say.)"""
+        if self.finished or self._failure_m is not None:
+            return False
+        return self._running is not None or t >= self._departure_s()
 
     def next_stop_m(self) -> float:
         """Km post [m] of the station the train stops at next: the next one of its
@@ -367,7 +410,7 @@ class TrainDriver:
         move at all (its way out is held)."""
         k = self._k
         from_id, to_id = self._pair(k)
-        route = _route(self.line, self.service.kind, from_id, to_id, self.margin_kmh)
+        route = shared_route(self.line, self.service.kind, from_id, to_id, self.margin_kmh)
         stops = self.service.stops
         planned = self.running_times.get(
             (from_id, to_id), stops[k + 1].arrival_s - stops[k].departure_s

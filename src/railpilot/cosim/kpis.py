@@ -24,6 +24,10 @@ Paper 001's KPIs (tables 2 and 3):
     of the traction energy drawn, what pulled against the air brake still applied (the
     smaller of the two forces while both act; a loaded train's air brake takes about a
     minute to release), per train and in total.
+``trains_not_arrived``
+    trains due at their destination by the end of the run that had not arrived there;
+    such a train's row has ``finished`` false and no end-to-end conformity or arrival delay
+    (None), never a figure from the part of its way it made.
 ``red_signal_stops``
     the trains' stops at red signals (at rest short of the station).
 ``tsr_violations``
@@ -160,9 +164,10 @@ def _net_energy_kwh(run: TrainRun) -> float:
 
 
 def _end_to_end(run: TrainRun) -> float | None:
-    """A train's conformity from its origin's departure to its last arrival [%]."""
+    """A train's conformity from its origin's departure to its destination [%]; None for
+    a train that has not arrived there (a share of its way is not its conformity)."""
     sections = run.sections
-    if not sections:
+    if not sections or not run.finished:
         return None
     planned = sections[-1].planned_arrival_s - sections[0].planned_departure_s
     actual = sections[-1].arrival_s - sections[0].departure_s
@@ -224,9 +229,10 @@ def train_rows(result: LineResult) -> dict[str, dict[str, Any]]:
             "red_signal_stops": run.red_signal_stops,
             "max_overspeed_kmh": worst.get(train_id, 0.0),
             "running_times_received": run.running_times_received,
-            "arrival_delay_s": None
-            if not sections
-            else round(sections[-1].arrival_s - sections[-1].planned_arrival_s, 1),
+            # at its destination; None for a train that has not arrived there
+            "arrival_delay_s": round(sections[-1].arrival_s - sections[-1].planned_arrival_s, 1)
+            if run.finished
+            else None,
             "arrival_delays_s": [None if d is None else round(d, 1) for d in delays],
         }
     return rows
@@ -268,6 +274,16 @@ def _punctuality_kpi(result: LineResult) -> dict[str, Any]:
     for _, run in _trains(result):
         delays += run.arrival_delays_s(result.sim_s)
     return punctuality(delays)
+
+
+def _not_arrived(result: LineResult) -> int:
+    """Trains due at their destination by the end of the run that had not arrived there
+    (held up, failed or stopped short: each train's row says where it got to)."""
+    return sum(
+        1
+        for _, run in _trains(result)
+        if not run.finished and run.service.stops[-1].arrival_s <= result.sim_s
+    )
 
 
 def _tsr_applied_twice(result: LineResult) -> int:
@@ -314,7 +330,11 @@ KPIS: tuple[Kpi, ...] = (
             Figure("max_section", "section conformity, max", "%", swept=False),
         ),
         against_baseline=True,
-        text=lambda c: f"end to end, mean {c['mean_end_to_end']} %",
+        text=lambda c: (
+            "end to end: no train arrived"
+            if c["mean_end_to_end"] is None
+            else f"end to end, mean {c['mean_end_to_end']} %"
+        ),
     ),
     Kpi(
         "energy_kwh",
@@ -350,9 +370,23 @@ KPIS: tuple[Kpi, ...] = (
         ),
         against_baseline=True,
         text=lambda p: (
-            f"arrivals on time within 3 min: {p['within_3_min_pct']} % of {p['arrivals']}"
-            f" (largest delay {p['max_delay_s']} s)"
+            "no arrival was due within the run"
+            if not p["arrivals"]
+            else f"arrivals on time within 3 min: {p['within_3_min_pct']} % of {p['arrivals']}"
+            + (
+                " (none made)"
+                if p["max_delay_s"] is None
+                else f" (largest delay {p['max_delay_s']} s)"
+            )
         ),
+    ),
+    Kpi(
+        "trains_not_arrived",
+        "trains not arrived",
+        _not_arrived,
+        (Figure("", "trains due at their destination that had not arrived"),),
+        against_baseline=True,
+        text=str,
     ),
     Kpi(
         "red_signal_stops",

@@ -23,11 +23,12 @@ from typing import Any
 
 import numpy as np
 
-from railpilot.errors import ConfigError
+from railpilot.errors import ConfigError, RunFailed
 from railpilot.ground.assembly import GroundParts
 from railpilot.ground.store import AuditEntry, Snapshot, Store
 from railpilot.link import GroundConfig, KeyStore, OnboardConfig
 from railpilot.link.keys import seeded_test_keys as loadtest_keys
+from railpilot.units import hms
 
 from .driver import DRIVERS, DriverKind, SectionRun, Service, TrainDriver
 from .human_driver import DEFAULT_HUMAN, HumanDriving
@@ -35,12 +36,11 @@ from .kpis import ON_TIME_WITHIN_MIN, kpi_object, punctuality
 from .link_sim import LinkSim, SimTrain
 from .retimer_factory import retimer_factory
 from .scenario import GroundRestart, LineScenario, ScenarioEvent, TrainFailure
+from .stall import DEFAULT_STALL_S, StallWatch, Standing, TrainAt
 from .trackside import Trackside, TrainSeen, TrainShape, static_overspeeds
 
 #: how often the trackside looks [s] (the link's cycle)
 WATCH_S = 1.0
-#: the onboard powers up this long before its first departure [s]
-POWER_ON_LEAD_S = 120.0
 #: a dispatcher's operation that finds the ground down is tried again this much later [s]
 RETRY_WHILE_DOWN_S = 10.0
 #: the keys of a dispatcher's operation's answer that are times on the ground's clock [s
@@ -247,10 +247,10 @@ def line_train(
     advised: bool,
     human: HumanDriving | None = None,
 ) -> tuple[TrainDriver, OnboardConfig]:
-    """One train of ``scenario``: its driver (powered on ``POWER_ON_LEAD_S`` before its
-    first departure; a baseline's driven by ``human`` if given) and its onboard unit's
-    link configuration."""
-    power_on = max(service.stops[0].departure_s - POWER_ON_LEAD_S, 0.0)
+    """One train of ``scenario``: its driver (powered on, and placed at its origin, at
+    ``service.power_on_s``; a baseline's driven by ``human`` if given) and its onboard
+    unit's link configuration."""
+    power_on = service.power_on_s
     driver = TrainDriver(
         scenario.line,
         service,
@@ -287,12 +287,14 @@ def run_line(
     on_watch: Callable[[LinkSim, float], None] | None = None,
     driver: DriverKind | None = None,
     human: HumanDriving = DEFAULT_HUMAN,
+    stall_after_s: float = DEFAULT_STALL_S,
 ) -> LineResult:
     """Run ``scenario`` (its seed unless ``seed``) to its end (or ``until_s``) with the
     ``driver``: ``"advised"`` (the driving system), ``"minimum-time"`` or ``"human"``
     (the baselines, docs/line-run.md; the human driver's habits ``human``). Without
     ``driver``, ``advised`` chooses: True the driving system, False the minimum-time
-    baseline."""
+    baseline. A run whose trains stand still for ``stall_after_s`` [s] with nothing
+    holding them ends with :class:`~railpilot.errors.RunFailed` (cosim/stall.py)."""
     if driver is None:
         driver = "advised" if advised else "minimum-time"
     elif driver not in DRIVERS:
@@ -323,7 +325,7 @@ def run_line(
         GroundConfig(ground_id=1, timers=trains[0].config.timers), line, keys, store, retimer
     )
     sim = LinkSim.over(ground, trains, scenario.channel, seed=seed, start_s=epoch)
-    watch = _Watch(sim, drivers, on_watch)
+    watch = _Watch(sim, drivers, on_watch, stall_after_s)
     events: list[dict[str, Any]] = []
     for event in scenario.events:
         sim.call_at(event.at_s, _event_action(sim, drivers, watch, event, events))
@@ -394,6 +396,18 @@ def _event_action(
     return act
 
 
+def _stalled_message(standing: list[Standing], t: float, stall_s: float) -> str:
+    trains = ", ".join(
+        f"train {s.train_id} at km {s.head_m / 1000.0:.3f} since {hms(s.since_s)}" for s in standing
+    )
+    return (
+        f"the run stands still at {hms(t)} (h:mm:ss from its start): {trains}; each has "
+        f"stood {stall_s / 60.0:g} min or more where neither its timetable nor a scenario "
+        "event holds it (trains holding one another's block sections, or a train stopped "
+        "short of its station)"
+    )
+
+
 class _Watch:
     """The co-simulation's trackside: once a second, every train's true position from its
     driver, handed to the :class:`~railpilot.cosim.trackside.Trackside` at one instant;
@@ -404,10 +418,12 @@ class _Watch:
         sim: LinkSim,
         drivers: dict[int, TrainDriver],
         on_watch: Callable[[LinkSim, float], None] | None,
+        stall_s: float = DEFAULT_STALL_S,
     ) -> None:
         self.sim = sim
         self.drivers = drivers
         self.on_watch = on_watch
+        self.stalls = StallWatch(stall_s)
         self.trackside = Trackside(
             sim.line,
             {
@@ -433,6 +449,15 @@ class _Watch:
             seen[train_id] = TrainSeen(head, speed, driver.next_stop_m())
         for train_id, view in self.trackside.look(t, sim.now_s, seen).items():
             self.drivers[train_id].cab_signal(view.red_signal_m, view.sight_m, t)
+        standing = self.stalls.look(
+            t,
+            {
+                i: TrainAt(at.head_m, self.drivers[i].direction, self.drivers[i].due_to_move(t))
+                for i, at in seen.items()
+            },
+        )
+        if standing:
+            raise RunFailed(_stalled_message(standing, t, self.stalls.stall_s))
         if self.on_watch is not None:
             self.on_watch(sim, t)
         sim.call_at(t + WATCH_S, self)

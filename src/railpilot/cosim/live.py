@@ -23,6 +23,11 @@ with real parts where the co-simulation has simulated ones:
   tells it over the control wire (cosim/live_wire.py) where it truly is each whole
   second, and it answers with the train's cab signal.
 
+A process that fails tells the run over the control wire in one line, and the run stops
+at once with that line, every process ended (a port that is not free names its field:
+:class:`~railpilot.cosim.live_wire.PortUnavailable`). The ground holds the ports it was
+given before any train starts, so a busy one stops the run within a second or two.
+
 What differs from the co-simulation: the radio is loopback TCP with the scenario's
 ``[channel]`` in front of it in each train's process (cosim/live_train.py), so the link's
 latencies are the channel's plus the host's, scaled by ``speedup`` (docs/line-run.md).
@@ -34,20 +39,22 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import logging
 import multiprocessing
 import os
 import secrets
 import tempfile
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Awaitable, Callable, Mapping
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 from railpilot.errors import ConfigError, RailpilotError, is_finite_number
 from railpilot.ground.store import open_store
 from railpilot.net.admin import AdminError, admin_request
+from railpilot.net.logfmt import kv
 from railpilot.net.timers import LinkClock
 
 from . import live_ground, live_train
@@ -63,7 +70,14 @@ from .line_run import (
     TrainRun,
     TsrViolation,
 )
-from .live_wire import MAX_LINE, hello_name, receive, send
+from .live_wire import (
+    MAX_LINE,
+    PortUnavailable,
+    failure_error,
+    hello_name,
+    receive,
+    send,
+)
 from .scenario import (
     MAX_SEED,
     GroundRestart,
@@ -90,8 +104,21 @@ START_LEAD_S = 0.2
 #: reports are in by then
 LOOK_AFTER_S = 0.5
 
+#: how long a process that has ended may still have lines on the wire (its failure) [s]
+WIRE_GRACE_S = 1.0
+#: how long an ended run's processes get to exit before they are killed [s]
+END_TIMEOUT_S = 5.0
+
+#: the ports a live run listens on (:class:`LiveOptions`' fields): the ground's link,
+#: dashboard and admin ports, and the run's own control wire
+PORT_FIELDS = ("link_port", "http_port", "admin_port", "control_port")
+
 #: how much nicer than the run's processes the dashboard's browser runs (os.nice)
 SCREENSHOT_NICENESS = 15
+
+log = logging.getLogger(__name__)
+
+T = TypeVar("T")
 
 
 def _lower_priority() -> None:
@@ -121,20 +148,27 @@ class LiveRunError(RailpilotError):
 @dataclass
 class LiveOptions:
     """How to run live (``railpilot line run``): the time scale, the seed (the scenario's
-    by default), where to stop [s], the dashboard's port (0: a free one) and token, the
-    ground's store file (default: a new one in a temporary directory), and a screenshot
-    of the dashboard taken at ``screenshot_at_s`` into ``screenshot``."""
+    by default), where to stop [s], the ports (each 0: a free one; :data:`PORT_FIELDS`),
+    the dashboard's token, the ground's store file (default: a new one in a temporary
+    directory), a screenshot of the dashboard taken at ``screenshot_at_s`` into
+    ``screenshot``, and the processes' log level."""
 
     speedup: float = DEFAULT_SPEEDUP
     seed: int | None = None
     until_s: float | None = None
     http_port: int = 0
+    link_port: int = 0
+    admin_port: int = 0
+    control_port: int = 0
     token: str | None = None
     store_path: str | None = None
     screenshot: Path | None = None
     screenshot_at_s: float | None = None
     #: told the dashboard's address and token once the ground is up
     on_dashboard: Callable[[str, str], None] | None = None
+    #: the level of the ground's and the trains' log on stderr (at debug, a process's
+    #: error comes with its traceback)
+    log_level: int = logging.WARNING
 
     def check(self, scenario: LineScenario) -> None:
         if self.seed is not None and (
@@ -151,8 +185,15 @@ class LiveOptions:
             not is_finite_number(self.until_s) or not self.until_s > 0.0
         ):
             raise ConfigError("until_s", self.until_s, "a time > 0 [s]")
-        if not isinstance(self.http_port, int) or not 0 <= self.http_port <= 65535:
-            raise ConfigError("http_port", self.http_port, "0..65535 (0: a free one)")
+        given: dict[int, str] = {}
+        for field in PORT_FIELDS:
+            port = getattr(self, field)
+            if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
+                raise ConfigError(field, port, "0..65535 (0: a free one)")
+            if port in given:  # the second would find the first holding it
+                raise ConfigError(field, port, f"a port other than {given[port]}'s")
+            if port != 0:
+                given[port] = field
         if self.screenshot_at_s is not None and not (
             is_finite_number(self.screenshot_at_s)
             and 0.0 < self.screenshot_at_s < scenario.duration_s
@@ -197,7 +238,8 @@ class _LiveRun:
         self.clock: LinkClock | None = None
         self.ground: Any = None  # the ground's process
         self.ground_up = False
-        self.ports = {"link_port": 0, "http_port": options.http_port, "admin_port": 0}
+        #: the ground's ports: as given, then (once it is up) as bound, for a restart
+        self.ports = {f: getattr(options, f) for f in ("link_port", "http_port", "admin_port")}
         self.trains: dict[int, Any] = {}  # train id -> its process
         self.writers: dict[int | str, asyncio.StreamWriter] = {}
         self.hello: dict[int | str, asyncio.Future[None]] = {}
@@ -210,6 +252,15 @@ class _LiveRun:
         self.screenshot: dict[str, Any] | None = None
         #: the (last) ground process's re-timings (a killed ground's go with it)
         self.retiming: list[dict[str, Any]] = []
+        #: the first failure a process told, and the run's way to hear of it at once
+        self.failure: RailpilotError | None = None
+        self.failed = asyncio.Event()
+        #: every connection on the control wire, and the processes whose wire has closed
+        self.connections: set[asyncio.StreamWriter] = set()
+        self.readers: set[asyncio.Task[Any]] = set()
+        self.closed: set[int | str] = set()
+        #: when the run first saw a process ended (wall clock, monotonic) [s]
+        self.ended_at: dict[int | str, float] = {}
 
     # ------------------------------------------------------------------ the run
 
@@ -218,13 +269,23 @@ class _LiveRun:
         self.hello = {"ground": loop.create_future()}
         self.hello |= {i: loop.create_future() for i in self.services}
         self.reported = {i: loop.create_future() for i in self.services}
-        control = await asyncio.start_server(self._accept, "127.0.0.1", 0, limit=MAX_LINE)
-        self.control_port = int(control.sockets[0].getsockname()[1])
+        control = await self._listen_control()
+        tasks: list[asyncio.Task[None]] = []
+        ended = False
         try:
             self._start_ground(None)
+            # the ground holds its ports before a train starts: a busy one ends the run
+            # before the trains' start-up (most of a run's first minute)
+            await self._ready(["ground"], READY_TIMEOUT_S)
+            await self._ground_says("held", READY_TIMEOUT_S)
             for train_id in self.services:
                 args = live_train.TrainArgs(
-                    self.control_port, self.path, self.seed, train_id, self.secret
+                    self.control_port,
+                    self.path,
+                    self.seed,
+                    train_id,
+                    self.secret,
+                    self.options.log_level,
                 )
                 process = self.context.Process(
                     target=live_train.run, args=(args,), name=f"train {train_id}", daemon=True
@@ -232,12 +293,14 @@ class _LiveRun:
                 process.start()
                 self.trains[train_id] = process
             await self._ready(list(self.hello), READY_TIMEOUT_S)
+            kv(log, logging.INFO, "live_ready", trains=len(self.trains))
             self.clock = LinkClock(
                 self.options.speedup, self.scenario.epoch_s, time.time() + START_LEAD_S
             )
             await self._send("ground", self._start_message())
             up = await self._ground_up(ANSWER_TIMEOUT_S)
             self.ports = {k: up[k] for k in ("link_port", "http_port", "admin_port")}
+            kv(log, logging.INFO, "ground_up", **self.ports)
             url = f"http://127.0.0.1:{self.ports['http_port']}/"
             if self.options.on_dashboard is not None:
                 self.options.on_dashboard(url, self.token)
@@ -249,7 +312,7 @@ class _LiveRun:
             shot = None
             if self.options.screenshot is not None and self.options.screenshot_at_s is not None:
                 shot = asyncio.create_task(self._screenshot(url))
-            await self._sleep_until(self.end_s)
+            await self._unless_failed(self._sleep_until(self.end_s))
             wall = time.perf_counter() - wall_started
             for task in tasks:
                 task.cancel()
@@ -266,10 +329,59 @@ class _LiveRun:
                 await self._send(train_id, {"op": "stop"})
             await self._ready(list(self.reported), ANSWER_TIMEOUT_S, self.reported)
             ground_counters = await self._stop_ground()
+            ended = True
         finally:
+            for task in tasks:
+                task.cancel()
             control.close()
-            self._end_processes()
+            # a run that failed does not wait for its processes: each is ended at once
+            self._end_processes(at_once=not ended)
+            await self._close_wire()
         return self._result(wall, ground_counters)
+
+    async def _listen_control(self) -> asyncio.Server:
+        """Listen for the processes' control wire (on ``control_port``, 0: a free one)."""
+        port = self.options.control_port
+        try:
+            control = await asyncio.start_server(self._accept, "127.0.0.1", port, limit=MAX_LINE)
+        except OSError as exc:
+            raise PortUnavailable.bind_failed("control_port", port, exc) from None
+        self.control_port = int(control.sockets[0].getsockname()[1])
+        return control
+
+    async def _close_wire(self) -> None:
+        """Close every connection of the control wire and let their readers end (a reader
+        left to asyncio.run's cancellation prints a traceback on Python 3.11)."""
+        for writer in self.connections:
+            writer.close()
+        readers = [t for t in self.readers if not t.done()]
+        if readers:
+            await asyncio.wait(readers, timeout=END_TIMEOUT_S)
+
+    async def _unless_failed(self, awaitable: Awaitable[T]) -> T:
+        """``awaitable``'s result, unless a process fails first: then its failure."""
+        task = asyncio.ensure_future(awaitable)
+        failed = asyncio.ensure_future(self.failed.wait())
+        try:
+            await asyncio.wait({task, failed}, return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            failed.cancel()
+            if not task.done():
+                task.cancel()
+                with contextlib.suppress(asyncio.CancelledError):
+                    await task
+        self._raise_failure()
+        return task.result()
+
+    def _raise_failure(self) -> None:
+        if self.failure is not None:
+            raise self.failure
+
+    def _fail(self, error: RailpilotError) -> None:
+        """A process's failure: the first one stops the run (the others follow from it)."""
+        if self.failure is None:
+            self.failure = error
+        self.failed.set()
 
     def _start_message(self) -> dict[str, Any]:
         assert self.clock is not None
@@ -289,6 +401,7 @@ class _LiveRun:
             self.token,
             self.secret,
             start_at_s=start_at_s,
+            log_level=self.options.log_level,
             **self.ports,
         )
         self.ground = self.context.Process(
@@ -303,47 +416,78 @@ class _LiveRun:
         futures: Mapping[Any, asyncio.Future[None]] | None = None,
     ) -> None:
         """Wait for every process in ``names`` to say hello (or to report); a process that
-        has died, or the timeout, stops the run with its name and exit code."""
+        failed, or has ended, or the timeout, stops the run with its name and why."""
         futures = self.hello if futures is None else futures
         deadline = time.monotonic() + timeout_s
         while not all(futures[n].done() for n in names):
+            self._raise_failure()
             for name in names:
-                process = self.ground if name == "ground" else self.trains[int(name)]
-                if not futures[name].done() and process.exitcode is not None:
-                    raise LiveRunError(f"the {process.name} process ended ({process.exitcode})")
+                if not futures[name].done():
+                    self._check_alive(name)
             if time.monotonic() > deadline:
                 late = [str(n) for n in names if not futures[n].done()]
                 raise LiveRunError(f"no answer within {timeout_s:g} s from: {', '.join(late)}")
             await asyncio.wait([futures[n] for n in names if not futures[n].done()], timeout=0.1)
+        self._raise_failure()
+
+    def _check_alive(self, name: int | str) -> None:
+        """Stop the run if the process ``name`` has ended: once its wire has closed (what
+        it said last, its failure, has been read by then), or a moment after."""
+        process = self.ground if name == "ground" else self.trains[int(name)]
+        if process.exitcode is None:
+            return
+        now = time.monotonic()
+        seen = self.ended_at.setdefault(name, now)
+        if name in self.closed or name not in self.writers or now - seen > WIRE_GRACE_S:
+            self._raise_failure()
+            raise LiveRunError(f"the {process.name} process ended (exit code {process.exitcode})")
+
+    async def _ground_says(self, op: str, timeout_s: float) -> dict[str, Any]:
+        """The ground's next message ``op`` (any other before it is passed over); its
+        failure, its end or the timeout stops the run."""
+        deadline = time.monotonic() + timeout_s
+        while True:
+            try:  # what it said before it ended first (its counters, at the end)
+                message = self.ground_messages.get_nowait()
+            except asyncio.QueueEmpty:
+                self._raise_failure()
+                self._check_alive("ground")
+                if time.monotonic() > deadline:
+                    raise LiveRunError(
+                        f"the ground did not answer ({op}) within {timeout_s:g} s"
+                    ) from None
+                try:
+                    async with asyncio.timeout(0.1):
+                        message = await self.ground_messages.get()
+                except TimeoutError:
+                    continue
+            if message["op"] == op:
+                return message
 
     async def _ground_up(self, timeout_s: float) -> dict[str, Any]:
-        try:
-            async with asyncio.timeout(timeout_s):
-                while (message := await self.ground_messages.get())["op"] != "up":
-                    pass
-        except TimeoutError:
-            raise LiveRunError(f"the ground did not come up within {timeout_s:g} s") from None
+        message = await self._ground_says("up", timeout_s)
         self.ground_up = True
         return message
 
     async def _stop_ground(self) -> dict[str, Any]:
         await self._send("ground", {"op": "stop"})
-        try:
-            async with asyncio.timeout(ANSWER_TIMEOUT_S):
-                while (message := await self.ground_messages.get())["op"] != "counters":
-                    pass
-        except TimeoutError:
-            raise LiveRunError("the ground did not report its counters") from None
+        message = await self._ground_says("counters", ANSWER_TIMEOUT_S)
         counters: dict[str, Any] = message["counters"]
         self.retiming = message["retiming"]
         await asyncio.to_thread(self.ground.join, ANSWER_TIMEOUT_S)
         return counters
 
-    def _end_processes(self) -> None:
-        for process in [self.ground, *self.trains.values()]:
-            if process is None or process.pid is None:
-                continue  # never started
-            process.join(timeout=5.0)
+    def _end_processes(self, at_once: bool) -> None:
+        """Wait for the processes to end (at the end of a run: they are ending), or, when
+        ``at_once`` (a run that failed), end them (SIGTERM: no traceback)."""
+        processes = [p for p in [self.ground, *self.trains.values()] if p is not None]
+        processes = [p for p in processes if p.pid is not None]  # not those never started
+        if at_once:
+            for process in processes:
+                if process.is_alive():
+                    process.terminate()
+        for process in processes:
+            process.join(timeout=END_TIMEOUT_S)
             if process.is_alive():
                 process.kill()
                 process.join()
@@ -351,6 +495,10 @@ class _LiveRun:
     # ------------------------------------------------------------------ the wire
 
     async def _accept(self, reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> None:
+        self.connections.add(writer)
+        reading = asyncio.current_task()
+        if reading is not None:
+            self.readers.add(reading)
         try:
             hello = await receive(reader)
         except ValueError:  # not JSON, or not an object: not one of ours
@@ -360,13 +508,17 @@ class _LiveRun:
             writer.close()
             return
         self.writers[name] = writer
+        self.closed.discard(name)
         if not self.hello[name].done():
             self.hello[name].set_result(None)
         elif name == "ground":
             # a restarted ground: it starts (on the same clock) when its down time is over
             await self._send("ground", self._start_message())
         while (message := await receive(reader)) is not None:
-            if name == "ground":
+            if message["op"] == "failed":
+                what = "ground" if name == "ground" else f"train {name}"
+                self._fail(failure_error(what, message))
+            elif name == "ground":
                 self.ground_messages.put_nowait(message)
             elif message["op"] == "seen":
                 self.seen[int(name)] = message
@@ -374,6 +526,8 @@ class _LiveRun:
                 self.results[int(name)] = message
                 if not self.reported[int(name)].done():
                     self.reported[int(name)].set_result(None)
+        if self.writers.get(name) is writer:  # not a restarted ground's predecessor
+            self.closed.add(name)
 
     async def _send(self, name: int | str, message: dict[str, Any]) -> None:
         writer = self.writers.get(name)
@@ -418,6 +572,13 @@ class _LiveRun:
     # ------------------------------------------------------------------ the scenario
 
     async def _event(self, event: ScenarioEvent) -> None:
+        try:
+            await self._play(event)
+        except RailpilotError as exc:  # the run stops now, not when the day is over
+            self._fail(exc)
+            raise
+
+    async def _play(self, event: ScenarioEvent) -> None:
         await self._sleep_until(event.at_s)
         action = event.action
         entry: dict[str, Any] = {"t_s": self._now_t(), "event": event.label}
@@ -444,9 +605,11 @@ class _LiveRun:
         await asyncio.to_thread(self.ground.join)
         self.writers.pop("ground", None)
         self.restarts.append({"down_at_s": down_at})
+        kv(log, logging.INFO, "ground_killed", t_s=down_at, down_s=down_s)
         self._start_ground(down_at + down_s)
         assert self.clock is not None
         up = await self._ground_up(ANSWER_TIMEOUT_S + self.clock.wall_s(down_s))
+        kv(log, logging.INFO, "ground_restarted", t_s=up["at_s"], **up["restored"])
         self.restarts[-1] |= {"up_at_s": up["at_s"], "restored": up["restored"]}
 
     async def _operate(self, event: ScenarioEvent) -> dict[str, Any]:

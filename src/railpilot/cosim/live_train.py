@@ -27,16 +27,18 @@ from collections import Counter
 from collections.abc import Callable
 from dataclasses import dataclass
 
-from railpilot.link import DeregisterReason, Event, OnboardState, TsrApplied
+from railpilot.link import DeregisterReason, Event, OnboardConfig, OnboardState, TsrApplied
 from railpilot.net.client import OnboardClient, first_of
+from railpilot.net.logfmt import setup_logging
 from railpilot.net.proxy import Direction, FaultProxy
 from railpilot.net.server import counters_dict
 from railpilot.net.timers import LinkClock
 
 from .channel import RadioChannel
+from .driver import TrainDriver
 from .line_run import WATCH_S, line_keys, line_train
-from .live_wire import connect, receive, send
-from .scenario import load_line_scenario
+from .live_wire import connect, receive, report_failure, run_process, send
+from .scenario import LineScenario, load_line_scenario
 
 #: how much of its first section a train process drives before it says it is ready [s]:
 #: enough to compile the simulation core and fill the route caches
@@ -53,6 +55,8 @@ class TrainArgs:
     train_id: int
     #: the run's control-wire secret (cosim/live_wire.py)
     secret: str
+    #: the level of its log on stderr (``logging.WARNING``...)
+    log_level: int = logging.WARNING
 
 
 class ChannelRadio:
@@ -81,8 +85,8 @@ class ChannelRadio:
 
 def run(args: TrainArgs) -> None:
     """The process's entry point (multiprocessing, spawn)."""
-    logging.basicConfig(level=logging.WARNING)
-    asyncio.run(_main(args))
+    setup_logging(args.log_level)
+    run_process(f"train {args.train_id}", _main(args))
 
 
 async def _main(args: TrainArgs) -> None:
@@ -91,10 +95,27 @@ async def _main(args: TrainArgs) -> None:
     warm, _ = line_train(scenario, service, True)
     warm.at(service.stops[0].departure_s + WARM_UP_S)
     driver, config = line_train(scenario, service, True)
-    epoch = scenario.epoch_s
     reader, writer = await connect(args.control_port)
     hello = {"op": "hello", "role": "train", "train": args.train_id, "secret": args.secret}
     await send(writer, hello)
+    try:
+        await _drive(args, scenario, driver, config, reader, writer)
+    except Exception as exc:
+        raise await report_failure(writer, exc) from None
+    finally:
+        writer.close()
+
+
+async def _drive(
+    args: TrainArgs,
+    scenario: LineScenario,
+    driver: TrainDriver,
+    config: OnboardConfig,
+    reader: asyncio.StreamReader,
+    writer: asyncio.StreamWriter,
+) -> None:
+    """The train on the run's clock, from the run's start to its end."""
+    epoch = scenario.epoch_s
     start = await receive(reader)
     if start is None:
         return
@@ -211,4 +232,3 @@ async def _main(args: TrainArgs) -> None:
     listener.cancel()
     with contextlib.suppress(asyncio.CancelledError):
         await listener
-    writer.close()

@@ -4,7 +4,7 @@
 TOML::
 
     name = "A day on the heavy-haul line"
-    line = "heavy-haul"             # a shipped line or a line file
+    line = "heavy-haul"             # a shipped line or a line file (relative to this file)
     seed = 1                        # the radio's and the reconnects' randomness
     duration_h = 9.0                # simulated time [h]
 
@@ -52,24 +52,37 @@ TOML::
 
 Every field is checked when the file is read, a dispatcher's operation by the same schema
 the admin port, the web page and the command line use, so a scenario that loads runs to
-its end. An error names the field (``services[2].every_min``), its value and what is allowed.
+its end; and against each other (railpilot.schema.cross_checks): every km post on the
+line, every station one of its, at most MAX_LINE_RUN_TRAINS trains. An error names the
+field (``services[2].every_min``), its value and what is allowed.
 """
 
 from __future__ import annotations
 
 import math
 import os
-from collections.abc import Mapping
+from collections import Counter
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError, ScenarioError
 from railpilot.ground.online_retimer import RetimerSettings
 from railpilot.ground.operations import OPS, Operation, OperationError, parse_operation
-from railpilot.line.loader import load_line
+from railpilot.line.loader import SHIPPED_LINES, load_line
 from railpilot.line.model import RailLine
+from railpilot.schema.cross_checks import (
+    on_line,
+    running_times_possible,
+    station_of,
+    timetable_stations,
+    trains_within,
+)
 from railpilot.schema.line_run import (
     GROUND_RESTART,
+    MAX_LINE_RUN_TRAINS,
+    MAX_LINE_RUN_TRAINS_WHY,
     MAX_SEED,
     MAX_TRAIN_ID,
     TRAIN_FAILURE,
@@ -86,7 +99,8 @@ from railpilot.schema.reading import read_document
 from railpilot.schema.validate import check
 
 from .channel import ChannelModel
-from .driver import Service, Stop, planned_running_time_s
+from .driver import Service, Stop, fastest_run, planned_running_time_s
+from .headway import headway_conflicts
 
 __all__ = [
     "MAX_SEED",
@@ -95,6 +109,7 @@ __all__ = [
     "LineScenario",
     "ScenarioEvent",
     "TrainFailure",
+    "check_timetable",
     "line_scenario_from_mapping",
     "load_line_scenario",
 ]
@@ -159,16 +174,19 @@ def _services(
     """The trains of the services ``tables`` (``written``: the same as the file gives them,
     for the errors' values)."""
     services: list[Service] = []
-    station_ids = {s.id for s in line.stations}
+    # before any train is planned: a file asking for too many is refused at once
+    trains_within(
+        "services",
+        sum(t.count for t in tables),
+        MAX_LINE_RUN_TRAINS,
+        f"{MAX_LINE_RUN_TRAINS_WHY}; the services' counts summed",
+        ScenarioError,
+    )
     for i, (table, raw) in enumerate(zip(tables, written, strict=True)):
         where = f"services[{i}]."
-        ends = []
-        for key, value in (("from", table.from_), ("to", table.to)):
-            if value not in station_ids:
-                raise ScenarioError(
-                    f"{where}{key}", raw[key], f"a station id of line '{line.name}'"
-                )
-            ends.append(int(value))
+        ends = [
+            station_of(f"{where}{key}", raw[key], line, ScenarioError) for key in ("from", "to")
+        ]
         if ends[0] == ends[1]:
             raise ScenarioError(f"{where}to", ends[1], "a station other than 'from'")
         first, count, every = table.first_departure_min, table.count, table.every_min
@@ -201,8 +219,8 @@ def _services(
                 stops.append(Stop(station, arrival, departure))
             train_id = table.first_id + n
             services.append(Service(train_id, f"{prefix}{train_id}", preset, tuple(stops)))
-    ids = [s.train_id for s in services]
-    twice = sorted({i for i in ids if ids.count(i) > 1})
+    uses = Counter(s.train_id for s in services)
+    twice = sorted(i for i, n in uses.items() if n > 1)
     if twice:
         raise ScenarioError("services", twice, "train ids used once (first_id and count overlap)")
     return tuple(services)
@@ -254,6 +272,37 @@ def _events(
     return tuple(sorted(events, key=lambda e: e.at_s))
 
 
+def _no_headway_conflicts(
+    tables: list[ServiceTable], services: tuple[Service, ...], line: RailLine, margin: float
+) -> None:
+    """No two trains in one block section at once as the timetable runs them
+    (cosim/headway.py): the later one would only stand at a red signal. The error names
+    the entry that makes the later train of the earliest conflict: its ``every_min`` when
+    both trains are of that entry, else its ``first_departure_min``."""
+    conflicts = headway_conflicts(services, line, margin)
+    if not conflicts:
+        return
+    entry = {t.first_id + n: i for i, t in enumerate(tables) for n in range(t.count)}
+    earliest = conflicts[0]
+    i = entry[earliest.second.train_id]
+    key = "every_min" if entry[earliest.first.train_id] == i else "first_departure_min"
+    more = f" ({len(conflicts)} conflicts in all)" if len(conflicts) > 1 else ""
+    raise ScenarioError(
+        f"services[{i}].{key}",
+        getattr(tables[i], key),
+        "trains of one track never in one block section at once (docs/line-run.md, "
+        f"'Timetable conflicts'), but {earliest.describe()}{more}",
+    )
+
+
+def _dead_zones_on_line(channel: ChannelModel, line: RailLine) -> None:
+    """Every dead zone of the radio lies on the line (its ends within the line's km posts):
+    one beyond them would never be met, and the run would seem to prove the radio robust."""
+    for i, zone in enumerate(channel.dead_zones):
+        for key, km in (("start_km", zone.start_km), ("end_km", zone.end_km)):
+            on_line(f"channel.dead_zones[{i}].{key}", km, line, ScenarioError)
+
+
 def _retiming(table: RetimingTable) -> RetimerSettings | None:
     if not table.enabled:
         return None
@@ -270,16 +319,39 @@ def _retiming(table: RetimingTable) -> RetimerSettings | None:
     )
 
 
-def line_scenario_from_mapping(data: Mapping[str, Any]) -> LineScenario:
-    """A :class:`LineScenario` from a parsed file, every field checked (module docstring)."""
+def line_of(name: str, folder: str | os.PathLike[str] | None) -> RailLine:
+    """The line a file names: a shipped line, or a line file, whose path is taken from
+    ``folder`` (the naming file's, so the file runs from any working directory) unless it
+    is absolute; ``folder`` None: from the working directory."""
+    if name in SHIPPED_LINES:
+        return load_line(name)
+    path = Path(name) if folder is None else Path(folder) / name
+    if not path.is_file():
+        shipped = ", ".join(SHIPPED_LINES)
+        raise ScenarioError(
+            "line",
+            name,
+            f"a shipped line ({shipped}) or a line file, its path relative to this file's "
+            f"folder (there is no file {path})",
+        )
+    return load_line(path)
+
+
+def line_scenario_from_mapping(
+    data: Mapping[str, Any], folder: str | os.PathLike[str] | None = None
+) -> LineScenario:
+    """A :class:`LineScenario` from a parsed file, every field checked (module docstring);
+    ``folder``: the file's, where a line file it names is found (:func:`line_of`)."""
     top = check(LineRunFileTable, data, ScenarioError, top="scenario")
-    line = load_line(top.line)
+    line = line_of(top.line, folder)
     margin = float(top.margin_kmh)
     duration_s = float(top.duration_h) * 3600.0
     epoch_s = float(top.start_epoch_s) if top.given("start_epoch_s") else DEFAULT_EPOCH_S
     channel = ChannelModel.from_mapping(top.channel)
+    _dead_zones_on_line(channel, line)
     retiming = _retiming(top.retiming)
     services = _services(top.services, data["services"], line, margin)
+    _no_headway_conflicts(top.services, services, line, margin)
     events = _events(top.events, line, epoch_s, duration_s, {s.train_id for s in services})
     return LineScenario(
         top.name,
@@ -302,6 +374,37 @@ def load_line_scenario(path: str | os.PathLike[str]) -> LineScenario:
     name = os.path.basename(path)
     data = read_document(path, "SCENARIO", "line-run file", ScenarioError)
     try:
-        return line_scenario_from_mapping(data)
+        return line_scenario_from_mapping(data, Path(path).parent)
     except ConfigError as error:
-        raise ScenarioError(f"{name}: {error.field}", error.value, error.allowed) from None
+        named = ScenarioError(f"{name}: {error.field}", error.value, error.allowed)
+        # the error's own message, named with the file (a line file's error keeps the name
+        # of the line file it is in)
+        named.args = (f"{name}: {error}",)
+        raise named from None
+
+
+def check_timetable(
+    sections: Sequence[Any],
+    line: RailLine,
+    preset_name: str,
+    margin_kmh: float,
+    driven: tuple[int, int] | None = None,
+) -> None:
+    """A timetable (its ``sections``, railpilot.onboard.timetable) against the line and the
+    train that runs it, before anything runs: every station one of the line's, and no
+    running time below the train's fastest run of its section (with the drive's
+    ``margin_kmh``). ``driven``: the sections from station ``driven[0]`` on to
+    ``driven[1]`` (the ones a drive runs), whose running times alone are checked (None:
+    every section's)."""
+    timetable_stations(sections, line, ConfigError)
+    indexed = list(enumerate(sections))
+    if driven is not None:
+        start = next((i for i, s in indexed if s.from_id == driven[0]), len(indexed))
+        end = next((i for i, s in indexed[start:] if s.to_id == driven[1]), len(indexed) - 1)
+        indexed = indexed[start : end + 1]
+
+    def fastest_s(from_id: int, to_id: int) -> float:
+        return fastest_run(line, preset_name, from_id, to_id, margin_kmh).running_time_s
+
+    how = f"up to the speed limits less {margin_kmh:g} km/h, --margin"
+    running_times_possible(indexed, fastest_s, preset_name, ConfigError, how)

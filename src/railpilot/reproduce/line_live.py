@@ -1,6 +1,6 @@
 """The line live against its co-simulation (docs/line-run.md "Live").
 
-``examples/line_live_short.toml`` (two loaded trains six minutes apart and an empty one
+``examples/line_live_short.toml`` (two loaded trains eight minutes apart and an empty one
 the other way, a TSR, a failure, a radio dead zone; an hour) is run twice: co-simulated
 (:func:`railpilot.cosim.line_run.run_line`), then live (:func:`railpilot.cosim.live.run_live`:
 the ground a server process with its store, admin port and dashboard, each train its own

@@ -15,7 +15,7 @@ from pydantic import BaseModel, ConfigDict, Field, Tag, TypeAdapter, create_mode
 
 from railpilot.schema.channel import ChannelFileTable
 from railpilot.schema.fields import NOT_GIVEN, FileTable, PlainWords, Says, Unit, number_words
-from railpilot.schema.operations import OPERATIONS
+from railpilot.schema.operations import MAX_TRAINS, OPERATIONS
 
 #: the train kinds a service may name
 SERVICE_KINDS = ("loaded", "empty")
@@ -28,6 +28,12 @@ MAX_DURATION_H = 7 * 24.0
 MAX_DEPARTURE_MIN = 7 * 24 * 60.0
 #: the largest train id (link ids are 16-bit; the ground's own ids lie above)
 MAX_TRAIN_ID = 65_000
+#: the most trains a line run holds, its services' counts summed: a dispatcher's request
+#: (a TSR's ``trains``, a dispatch command) names at most MAX_TRAINS trains, and every train
+#: of a run must fit one request; a run that large also costs hours of wall clock (the
+#: co-simulation's speed, docs/line-run.md)
+MAX_LINE_RUN_TRAINS = MAX_TRAINS
+MAX_LINE_RUN_TRAINS_WHY = "the most trains one dispatcher's request may name"
 #: a day [min]
 DAY_MIN = 24 * 60.0
 #: the events that are not a dispatcher's operation

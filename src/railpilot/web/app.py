@@ -115,6 +115,7 @@ class Push:
 
 STATIC = Path(str(resources.files("railpilot.web") / "static"))
 
+
 def _dumps(obj: Any) -> str:
     """JSON as the page reads it (no NaN or infinity: a source bug shows here)."""
     return json.dumps(obj, allow_nan=False, separators=(",", ":"))
