@@ -167,7 +167,7 @@ def _run(args: argparse.Namespace) -> int:
         margin_kmh=args.margin,
         model=args.model,
     )
-    _check_arrived(outcome)
+    _check_arrived(outcome, line)
     summary = outcome.summary()
     if args.out is not None:
         summary["figures"] = _save_figures(args.out, line.name, outcome)
@@ -188,18 +188,38 @@ class DriveNotFinished(Exception):
     """The train did not come to its stop: the command says why and exits 1."""
 
 
-def _check_arrived(outcome: DriveOutcome) -> None:
-    """A drive whose train did not come to its stop says so and fails (no NaN printed)."""
+def _check_arrived(outcome: DriveOutcome, line: RailLine) -> None:
+    """A drive whose train did not come to its stop, or stopped farther from it than a
+    train that has arrived (``ARRIVED_WITHIN_M``, the line runs' rule), says where and why
+    and fails (no NaN printed; a timetable's drive stops at this section)."""
     import math
 
-    if not math.isfinite(outcome.result.metrics["running_time_s"]):
-        r = outcome.result
+    from railpilot.onboard.drive import ARRIVED_WITHIN_M
+
+    r = outcome.result
+    if not math.isfinite(r.metrics["running_time_s"]):
         raise DriveNotFinished(
             f"the train did not stop at station {outcome.to_station} within the run's "
             f"{float(r['time_s'][-1]):.0f} s: its head is at km "
             f"{float(outcome.km_post(r['position_m'][-1:])[0]) / 1000.0:.3f}, "
             f"{float(r['speed_mps'][-1]) * 3.6:.1f} km/h"
         )
+    error_m = float(r.metrics["stop_error_m"])
+    if abs(error_m) <= ARRIVED_WITHIN_M:
+        return
+    stop_km = outcome.arrival_m / 1000.0
+    grade = float(line.gradient_at(outcome.arrival_m, outcome.direction))
+    slope = (
+        "on the level"
+        if grade == 0
+        else f"on a {'descent' if grade < 0 else 'climb'} of {abs(grade):.1f} per mille"
+    )
+    raise DriveNotFinished(
+        f"the train stopped {abs(error_m):,.1f} m {'past' if error_m > 0 else 'short of'} "
+        f"station {outcome.to_station}'s stop point (km {stop_km:.3f}, {slope}): its "
+        f"braking, planned for the line, did not bring it to the stop within "
+        f"{ARRIVED_WITHIN_M:g} m"
+    )
 
 
 def _consist_totals(results: list[dict[str, object]]) -> dict[str, object]:
@@ -264,7 +284,7 @@ def _run_timetable(args, line, preset, sections, tsrs, targets) -> int:  # type:
             start_time_s=clock_s,
             model=args.model,
         )
-        _check_arrived(outcome)
+        _check_arrived(outcome, line)
         clock_s += outcome.result.metrics["running_time_s"]
         summary = outcome.summary()
         summary["from"] = section.from_id

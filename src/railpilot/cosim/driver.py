@@ -64,6 +64,7 @@ from railpilot.link.messages import PlannedCurve as CurveReport
 from railpilot.link.messages import RunningTimes, TargetPoint, TargetReason, TravelDirection
 from railpilot.onboard.consist_drive import ConsistDrive
 from railpilot.onboard.drive import (
+    ARRIVED_WITHIN_M,
     DEFAULT_MARGIN_KMH,
     StationRoute,
     TrainPreset,
@@ -96,8 +97,6 @@ FAILURE_STOP_ID = 2**32
 #: a train at rest this close short of a stop it knows of is held there [m] (farther:
 #: nothing holds it, it goes on)
 HELD_WITHIN_M = 10.0
-#: a train stopped this close to its station's stop point has arrived [m]
-ARRIVED_WITHIN_M = 50.0
 #: the onboard powers up, and the train is placed at its origin, this long before its
 #: first departure [s]
 POWER_ON_LEAD_S = 120.0

@@ -77,6 +77,9 @@ DEFAULT_SUPPLEMENT = 0.10
 #: the onboard aims this far short of a target stop [m]: the heavy-haul precise stop's
 #: tolerance, so it never ends beyond the end of authority
 TARGET_STOP_MARGIN_M = 2.0
+#: a train at rest this close to its stop point has arrived [m]; farther, the drive failed
+#: (the line runs use the same rule)
+ARRIVED_WITHIN_M = 50.0
 #: the plan keeps this far below the MRSP [km/h], room for the ATO's tracking error (a
 #: production ATO's target speed sits below the permitted speed the same way)
 DEFAULT_MARGIN_KMH = 5.0
@@ -317,6 +320,32 @@ def whole_train_limit_mps(
     return limit
 
 
+def check_reachable(
+    route: StationRoute, sec: SectionGrid, quickest: SpeedPlan, from_station: int, to_station: int
+) -> None:
+    """A station the train can reach: its fastest run comes to rest nowhere short of the
+    stop. A train that cannot climb a grade of the section (a loaded heavy-haul train
+    with one locomotive on a steep climb) is refused before anything runs, naming where it
+    stalls and the forces: the line's and its running resistance there against the most
+    its locomotive pulls."""
+    v = quickest.speed_mps
+    at_rest = np.flatnonzero(v[1:-1] <= 0.0)
+    if at_rest.size == 0:
+        return
+    i = int(at_rest[0]) + 1
+    train, loco = route.preset.train, route.preset.brake.locomotive
+    weight_kn = train.mass_kg * G_MPS2 / 1000.0
+    resisting_kn = (float(sec.line_w[i]) + train.davis_a0) * weight_kn / 1000.0
+    where = float(km_post_m(quickest.s_m[i], route.direction, route.departure_m)) / 1000.0
+    raise ConfigError(
+        f"section {from_station} -> {to_station}",
+        f"{route.preset.name} stalls at km {where:.3f}",
+        f"a section the train can run: there the line under it and its running resistance "
+        f"hold it back with {resisting_kn:,.0f} kN ({float(sec.line_w[i]):+.1f} per mille "
+        f"of the line), its locomotive pulls at most {loco.traction.max_force_n / 1000.0:,.0f} kN",
+    )
+
+
 def drive(
     line: RailLine,
     preset: TrainPreset,
@@ -356,6 +385,7 @@ def drive(
     mrsp = route.mrsp_at(0.0)
     end_s, quickest_sec = route.section_from(mrsp, 0.0, 0.0)
     quickest = fastest(preset.driving, quickest_sec)
+    check_reachable(route, quickest_sec, quickest, from_station, to_station)
     # the running time is the station pair's; a plan to a target stop gets its share
     target_time = (
         quickest.running_time_s * (1.0 + DEFAULT_SUPPLEMENT) * route.length_m / end_s

@@ -145,8 +145,9 @@ N_DRIVER = 20
     C_ENDED,
     C_RELEASED_AT,
     C_ACCEL,
-) = range(34)
-N_METRICS = 34
+    C_STOP_SINCE,
+) = range(35)
+N_METRICS = 35
 
 
 @dataclass(frozen=True)
@@ -480,6 +481,7 @@ def consist_kernel(
     integral = metrics[C_INTEGRAL]
     applied = metrics[C_APPLIED] > 0.5
     stopping = metrics[C_STOPPING] > 0.5
+    stop_since = metrics[C_STOP_SINCE]
     n_events = int(metrics[C_N_EVENTS])
     n_rec = int(metrics[C_N_REC])
     has_moved = metrics[C_HAS_MOVED] > 0.5
@@ -545,12 +547,21 @@ def consist_kernel(
                 )
                 decel = max(drv[DP_STOP_DECEL_MPS2] + w_line * G_MPS2 / 1000.0, MIN_STOP_DECEL)
                 needed = v_lead * drv[DP_STOP_LEAD_S] + v_lead * v_lead / (2.0 * decel)
-                if to_go <= needed:
+                if to_go <= needed and not stopping:
                     stopping = True
+                    stop_since = t
                 if stopping:
                     reduction = max(reduction, drv[DP_STOP_REDUCTION_KPA])
                     curve = math.sqrt(2.0 * decel * max(to_go, 0.0))
                     effort = min(drv[DP_KP] * (curve - v_lead), 0.0)
+                    # a stop the reduction does not make (reservoirs not recharged since
+                    # the last cycle, a descent steeper under the train than ahead): once
+                    # it has built up, the driver deepens it to the deceleration the stop
+                    # now needs, up to full service (deepened, never eased)
+                    if t - stop_since >= drv[DP_STOP_LEAD_S] and v_lead > curve:
+                        short_mps2 = v_lead * v_lead / (2.0 * max(to_go, 1.0)) - decel
+                        wanted = drv[DP_STOP_REDUCTION_KPA] + short_mps2 * drv[DP_KPA_PER_MPS2]
+                        reduction = max(reduction, min(wanted, drv[DP_FULL_REDUCTION_KPA]))
                 else:
                     # the air the plan ahead asks for: the deepest deceleration to any
                     # of its speeds ahead (the air's build-up run first), less what the
@@ -763,6 +774,7 @@ def consist_kernel(
     metrics[C_INTEGRAL] = integral
     metrics[C_APPLIED] = 1.0 if applied else 0.0
     metrics[C_STOPPING] = 1.0 if stopping else 0.0
+    metrics[C_STOP_SINCE] = stop_since
     metrics[C_N_EVENTS] = n_events
     metrics[C_N_REC] = n_rec
     metrics[C_HAS_MOVED] = 1.0 if has_moved else 0.0
