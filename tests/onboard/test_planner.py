@@ -329,3 +329,24 @@ def test_the_station_stop_on_a_long_descent_is_braked_as_before():
 def test_a_stop_deceleration_that_is_not_one_is_refused_by_name(bad):
     with pytest.raises(ConfigError, match="stop_net_mps2"):
         plan(DRIVE, SECTIONS["level"], 1_000.0, bad)
+
+
+def test_a_distributed_power_train_is_planned_with_every_unit_s_force() -> None:
+    """The 20,000 t train's two HXD1s take the same notch (the remote by radio): the
+    drive the planner sees pulls and regenerates with both, the 10,000 t train's with its
+    one."""
+    from railpilot.onboard.drive import hauling
+    from railpilot.scenario.consist_file import consist_preset
+
+    single = consist_preset("heavy-haul-10kt")
+    double = consist_preset("heavy-haul-20kt-dp")
+    units = [double.vehicles[int(i)].locomotive for i in double.locomotive_indices()]
+    assert len(units) == 2 and all(u is not None for u in units)
+    one = hauling(single)
+    both = hauling(double)
+    assert one is single.vehicles[0].locomotive
+    assert both.traction.max_force_n == sum(u.traction.max_force_n for u in units if u)
+    assert both.traction.max_power_w == sum(u.traction.max_power_w for u in units if u)
+    assert both.regen.max_force_n == sum(u.regen.max_force_n for u in units if u)
+    assert both.regen.max_power_w == sum(u.regen.max_power_w for u in units if u)
+    assert both.traction.max_force_n == 2 * one.traction.max_force_n

@@ -15,6 +15,7 @@ departure stop in the direction of travel (``mrsp.travelled_m``).
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from functools import cached_property
@@ -65,6 +66,7 @@ from railpilot.units import G_MPS2, KMH_PER_MPS, kmh_to_mps, mps_to_kmh
 from railpilot.vehicle.consist import Consist
 from railpilot.vehicle.line import Line, Segment
 from railpilot.vehicle.profile import ResistanceTable, elevation_table, mean_specific_resistance
+from railpilot.vehicle.traction import Locomotive
 from railpilot.vehicle.train import Train
 
 #: the trains that can follow the plan: the point mass, or every vehicle of the consist
@@ -108,6 +110,35 @@ class TrainPreset:
         return DrivingTrain(self.train, self.brake.locomotive)
 
 
+def hauling(consist: Consist) -> Locomotive:
+    """The locomotives of ``consist`` as the one drive the planner and the point mass see:
+    the lead alone, or, with distributed power (the remotes take the lead's notch by
+    radio, docs/consist.md), every unit's force and power summed, so the 20,000 t train
+    is planned with both its HXD1s."""
+    units = [consist.vehicles[int(i)].locomotive for i in consist.locomotive_indices()]
+    lead = units[0]
+    assert lead is not None  # a consist's first vehicle is its lead locomotive
+    if len(units) == 1:
+        return lead
+    drives = [u for u in units if u is not None]
+    return dataclasses.replace(
+        lead,
+        name=" + ".join(u.name for u in drives),
+        mass_kg=sum(u.mass_kg for u in drives),
+        length_m=sum(u.length_m for u in drives),
+        traction=dataclasses.replace(
+            lead.traction,
+            max_force_n=sum(u.traction.max_force_n for u in drives),
+            max_power_w=sum(u.traction.max_power_w for u in drives),
+        ),
+        regen=dataclasses.replace(
+            lead.regen,
+            max_force_n=sum(u.regen.max_force_n for u in drives),
+            max_power_w=sum(u.regen.max_power_w for u in drives),
+        ),
+    )
+
+
 def preset_of_consist(name: str, category: str, consist: Consist) -> TrainPreset:
     """A heavy-haul preset from its consist: the point mass the consist derives, hauled by
     its lead locomotive's drive, with the brake pipe's full service at the consist's own
@@ -118,10 +149,8 @@ def preset_of_consist(name: str, category: str, consist: Consist) -> TrainPreset
     stops the sections closer to their times and returns more energy (docs/precise-stop.md).
     """
     train = consist.point_mass_train()
-    lead = consist.vehicles[int(consist.locomotive_indices()[0])].locomotive
-    assert lead is not None  # a consist's first vehicle is its lead locomotive
     brake = LocomotiveDrive(
-        locomotive=lead,
+        locomotive=hauling(consist),
         traction_lag_s=1.0,
         air=BrakePipeBrake(max_decel_mps2=train.max_service_decel_mps2),
         handover_kmh=0.0,
