@@ -126,10 +126,16 @@ def test_the_text_prints_each_kpi_with_a_text_and_the_baseline_beside_it(runs):
     advised, baseline = runs
     kpis = advised.kpis(baseline)
     lines = table.text_lines(kpis)
-    printed = [k for k in table.KPIS if k.text is not None]
+    # each KPI's line, then a line for each of its figures printed on their own
+    printed = [
+        (f"  {title}: ", kpi)
+        for kpi in table.KPIS
+        if kpi.text is not None
+        for title in (kpi.label, *(f.title for f in kpi.figures if f.text))
+    ]
     assert len(lines) == len(printed)
-    for line, kpi in zip(lines, printed, strict=True):
-        assert line.startswith(f"  {kpi.label}: ")
+    for line, (start, kpi) in zip(lines, printed, strict=True):
+        assert line.startswith(start)
         assert ("(baseline " in line) == kpi.against_baseline
     assert all("(baseline" not in line for line in table.text_lines(advised.kpis()))
 

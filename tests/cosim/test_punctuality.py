@@ -61,6 +61,9 @@ def test_the_shares_on_time_count_an_arrival_not_made_as_late() -> None:
         "within_5_min_pct": 80.0,  # and 250
         "mean_delay_s": 80.2,  # of the four made
         "max_delay_s": 250.0,
+        "mean_lateness_s": 85.2,  # (30 + 250 + 0 + 61) / 4 = 85.25: the early one as 0
+        "early_arrivals": 1,
+        "mean_earliness_s": 20.0,
     }
     # a boundary is on time
     assert punctuality([60.0])["within_1_min_pct"] == 100.0

@@ -9,17 +9,20 @@ import argparse
 import contextlib
 import logging
 import math
+import sys
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, cast
+from typing import TYPE_CHECKING, Any, TextIO, cast
 
 from railpilot.commands._common import json_text, log, out_dir_argument, print_json
 from railpilot.errors import ConfigError
+from railpilot.units import hms
 
 if TYPE_CHECKING:
     from railpilot.cosim.driver import DriverKind
     from railpilot.cosim.line_run import LineResult
+    from railpilot.cosim.link_sim import LinkSim
 
 #: ``line run``'s ports: option -> what listens there (each field of cosim/live.py's
 #: LiveOptions is the option's name without its dashes, "_" for "-")
@@ -33,6 +36,14 @@ LIVE_PORT_HELP = {
 #: the baselines ``line simulate`` can run (cosim/driver.py ``BASELINES``; not imported
 #: from there: the command line loads the simulation only when it runs one)
 BASELINE_NAMES = ("minimum-time", "human")
+#: the progress line on a terminal is rewritten at most this often [s of wall clock]
+PROGRESS_EVERY_S = 1.0
+#: how the progress line names each run of ``line simulate``, by driver
+RUN_LABELS = {
+    "advised": "advised",
+    "minimum-time": "minimum-time baseline",
+    "human": "human baseline",
+}
 
 
 def register(subparsers: argparse._SubParsersAction) -> None:
@@ -73,6 +84,12 @@ def register(subparsers: argparse._SubParsersAction) -> None:
         "and sweep.json (what is printed)",
     )
     p.add_argument("--json", action="store_true", help="print one JSON object on stdout")
+    p.add_argument(
+        "--quiet",
+        action="store_true",
+        help="no progress on stderr: neither the simulated clock that a terminal shows while "
+        "the day runs nor the timing lines (errors still)",
+    )
     p.set_defaults(func=run)
     p = sub.add_parser(
         "knock-on",
@@ -276,11 +293,110 @@ def _port_option(field: str) -> str | None:
     return option if option in LIVE_PORT_HELP else None
 
 
+class RunProgress:
+    """Where a run is, on one line of a terminal rewritten in place (carriage return): the
+    simulated clock, the trains running and arrived. The co-simulation calls it once a
+    simulated second (``run_line``'s ``on_watch``); it writes at most once every
+    ``every_s`` of ``clock`` (the wall clock): the clock is read here, never in the
+    simulation, whose runs stay the same to the bit with it or without it."""
+
+    def __init__(
+        self,
+        stream: TextIO,
+        clock: Callable[[], float] = time.monotonic,
+        every_s: float = PROGRESS_EVERY_S,
+    ) -> None:
+        self.stream = stream
+        self.clock = clock
+        self.every_s = every_s
+        self._width = 0  # of the line on the terminal now (0: none)
+
+    def planning(self, trains: int) -> None:
+        """Say that the file's trains are being planned (loading a file plans every
+        section of every train, which takes a while for many)."""
+        self._show(f"planning {trains} train{'' if trains == 1 else 's'}...")
+
+    def watch(self, label: str, duration_s: float) -> Callable[[LinkSim, float], None]:
+        """The ``on_watch`` of one run, named ``label``, ``duration_s`` long [s]: its first
+        call writes at once, the next ones every ``every_s`` at most."""
+        last = -math.inf
+
+        def on_watch(sim: LinkSim, t: float) -> None:
+            nonlocal last
+            now = self.clock()
+            if now - last < self.every_s:
+                return
+            last = now
+            self._show(progress_text(label, t, duration_s, sim.trains, sim.retiring))
+
+        return on_watch
+
+    def clear(self) -> None:
+        """Take the line off the terminal (before anything else is written there)."""
+        if self._width:
+            self.stream.write("\r" + " " * self._width + "\r")
+            self.stream.flush()
+            self._width = 0
+
+    def _show(self, text: str) -> None:
+        # spaces over what is left of a longer line before it
+        self.stream.write("\r" + text.ljust(self._width))
+        self.stream.flush()
+        self._width = len(text)
+
+
+def progress_text(
+    label: str, t: float, duration_s: float, trains: Mapping[int, Any], arrived: set[int]
+) -> str:
+    """The progress line at ``t`` [s since the run's start]: ``trains`` by id (each with
+    the ``start_s`` its onboard comes up at, link_sim.py ``SimTrain``), ``arrived`` the ids
+    of those at their destination; running: up and not arrived."""
+    running = sum(1 for i, train in trains.items() if train.start_s <= t and i not in arrived)
+    return (
+        f"{label}: {hms(t)} of {hms(duration_s)} simulated, {running} running, "
+        f"{len(arrived)} arrived of {len(trains)}"
+    )
+
+
+def _progress(args: argparse.Namespace) -> RunProgress | None:
+    """The progress line of ``line simulate``, on a terminal and without --quiet only."""
+    if args.quiet or not sys.stderr.isatty():
+        return None
+    return RunProgress(sys.stderr)
+
+
+def _trains_asked(path: Path) -> int | None:
+    """How many trains the line-run file at ``path`` asks for (its services' counts
+    summed), read before the file is loaded and planned; None where it cannot tell (the
+    loader then says what is wrong)."""
+    from railpilot.errors import ScenarioError
+    from railpilot.schema.reading import read_document
+
+    data = read_document(path, "SCENARIO", "line-run file", ScenarioError)
+    services = data.get("services") if isinstance(data, dict) else None
+    if not isinstance(services, list):
+        return None
+    counts = [s.get("count", 1) if isinstance(s, dict) else None for s in services]
+    if not all(isinstance(c, int) and not isinstance(c, bool) for c in counts):
+        return None
+    return sum(cast("list[int]", counts))
+
+
 def run(args: argparse.Namespace) -> int:
     from railpilot.cosim.line_run import run_line
     from railpilot.cosim.scenario import load_line_scenario
 
-    scenario = load_line_scenario(args.scenario)
+    progress = _progress(args)
+    if progress is not None:
+        trains = _trains_asked(args.scenario)
+        if trains is not None:
+            progress.planning(trains)
+    try:
+        scenario = load_line_scenario(args.scenario)
+    finally:
+        if progress is not None:
+            progress.clear()
+    say = (lambda _: None) if args.quiet else log
     seed = scenario.seed if args.seed is None else args.seed
     baselines = () if args.no_baseline else _baselines(args.baselines)
     if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:
@@ -290,16 +406,28 @@ def run(args: argparse.Namespace) -> int:
         # one run goes in this process: a cluster named for it would silently be idle
         raise ConfigError("--scheduler", args.scheduler, "a cluster only for --runs N > 1")
     if args.runs > 1:
-        out, results = sweep(args.scenario, seed, args.runs, args.scheduler)
+        out, results = sweep(args.scenario, seed, args.runs, args.scheduler, say)
         if args.out is not None:  # only now: a sweep that failed has written nothing
             out["files"] = _write_sweep(args.out, out, results)
     else:
-        result = run_line(scenario, seed=seed)
-        log(f"{scenario.name}: {result.sim_s:.0f} s simulated in {result.wall_s:.1f} s")
+
+        def one_run(driver: str) -> LineResult:
+            watch = None if progress is None else progress.watch(RUN_LABELS[driver], end)
+            try:
+                return run_line(
+                    scenario, seed=seed, driver=cast("DriverKind", driver), on_watch=watch
+                )
+            finally:
+                if progress is not None:
+                    progress.clear()
+
+        end = scenario.duration_s
+        result = one_run("advised")
+        say(f"{scenario.name}: {result.sim_s:.0f} s simulated in {result.wall_s:.1f} s")
         runs: dict[str, LineResult] = {}
         for name in baselines:
-            runs[name] = run_line(scenario, seed=seed, driver=cast("DriverKind", name))
-            log(f"{name} baseline: {runs[name].wall_s:.1f} s")
+            runs[name] = one_run(name)
+            say(f"{name} baseline: {runs[name].wall_s:.1f} s")
         baseline = runs.get("minimum-time")
         out = result.kpis(baseline, runs.get("human"))
         if args.out is not None:
@@ -342,11 +470,16 @@ def _sweep_run(path: str, seed: int) -> dict[str, Any]:
 
 
 def sweep(
-    path: Path, seed: int, runs: int, scheduler: str | None
+    path: Path,
+    seed: int,
+    runs: int,
+    scheduler: str | None,
+    say: Callable[[str], None] = log,
 ) -> tuple[dict[str, Any], list[dict[str, Any]]]:
     """``runs`` seeds from ``seed`` on, fanned out on this machine's cores or the Dask
     cluster at ``scheduler`` (cluster.py): the spread of each swept KPI (cosim/kpis.py
-    ``sweep_summary``), and each run's KPIs in the order of its seed."""
+    ``sweep_summary``), and each run's KPIs in the order of its seed; ``say`` tells how
+    far it is."""
     from railpilot.cluster import fan_out
     from railpilot.cosim.kpis import sweep_summary
 
@@ -354,7 +487,7 @@ def sweep(
     started = time.perf_counter()
     calls = [(str(path), s) for s in seeds]
     finished = ((seeds[k], kpis) for k, kpis in fan_out(_sweep_run, calls, scheduler))
-    by_seed = _collect(finished, runs, started)
+    by_seed = _collect(finished, runs, started, say)
     results = [by_seed[s] for s in seeds]
     out: dict[str, Any] = {
         "scenario": results[0]["scenario"],
@@ -421,15 +554,18 @@ def _write_run(
 
 
 def _collect(
-    finished: Iterator[tuple[int, dict[str, Any]]], runs: int, started: float
+    finished: Iterator[tuple[int, dict[str, Any]]],
+    runs: int,
+    started: float,
+    say: Callable[[str], None] = log,
 ) -> dict[int, dict[str, Any]]:
-    """Each run's KPIs by seed, saying on stderr how far a long sweep is as each one ends."""
+    """Each run's KPIs by seed, saying (``say``) how far a long sweep is as each one ends."""
     from railpilot.cosim.kpis import progress_line
 
     by_seed: dict[int, dict[str, Any]] = {}
     for seed, kpis in finished:
         by_seed[seed] = kpis
-        log(
+        say(
             f"seed {seed}: {progress_line(kpis)} ({len(by_seed)}/{runs},"
             f" {time.perf_counter() - started:.0f} s)"
         )
@@ -437,7 +573,7 @@ def _collect(
 
 
 def _print_text(out: dict[str, Any]) -> None:
-    from railpilot.cosim.kpis import KPIS, text_lines
+    from railpilot.cosim.kpis import BASELINE_DEFINITIONS, KPIS, TEXT_LABELS, text_lines
 
     for path in out.get("files", []):
         log(f"wrote {path}")
@@ -455,5 +591,7 @@ def _print_text(out: dict[str, Any]) -> None:
     print(
         f"{out['scenario']} (seed {out['seed']}): {len(out['trains'])} trains, {out['sim_s']:.0f} s"
     )
+    for name in out.get("baselines", {}):
+        print(f"  the {TEXT_LABELS[name]}: {BASELINE_DEFINITIONS[name]}.")
     for line in text_lines(out):
         print(line)

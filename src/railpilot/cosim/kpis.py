@@ -46,7 +46,13 @@ Paper 001's KPIs (tables 2 and 3):
 
 Besides paper 001's, the operator's: ``punctuality`` (:func:`punctuality`), every arrival
 at a timetabled stop against the timetable (not against a re-timing), per train
-(``arrival_delays_s``) and as shares on time within 1, 3 and 5 minutes.
+(``arrival_delays_s``), as shares on time within 1, 3 and 5 minutes, and as a railway
+reports lateness (:func:`lateness`): the mean counting an early arrival as 0 (an early
+train is not late, and its minutes ahead must not hide another's behind), the early
+arrivals apart, and the signed mean beside them.
+
+Each figure says which way is better (:attr:`Figure.better`): the report sets every row
+of two runs side by side with it, and the command line's text says it on every line.
 """
 
 from __future__ import annotations
@@ -65,6 +71,11 @@ if TYPE_CHECKING:
 #: punctuality: an arrival at most this many minutes after the timetable is on time (one
 #: share each; an early arrival is on time)
 ON_TIME_WITHIN_MIN = (1, 3, 5)
+#: the tolerance of the share on time that the command line's text states [min]
+ON_TIME_TOLERANCE_MIN = 3
+#: which way a figure is better: smaller, larger, or nearer 0 (a signed figure, where
+#: early is no better than late)
+LOWER, HIGHER, NEARER_ZERO = "lower", "higher", "nearer 0"
 #: the quantiles a sweep gives of each swept figure, by name in its summary; NumPy's
 #: ``linear`` method (Hyndman and Fan's definition 7: linear between order statistics)
 SWEEP_QUANTILES = (("p5", 0.05), ("median", 0.5), ("p95", 0.95))
@@ -84,11 +95,26 @@ class Figure:
     unit: str = ""
     #: a sweep gives its spread (:func:`spread`)
     swept: bool = True
+    #: which way is better: :data:`LOWER`, :data:`HIGHER` or :data:`NEARER_ZERO` (None: a
+    #: count that is neither, such as the link's connects)
+    better: str | None = LOWER
+    #: a line of its own in the command line's text, after its KPI's
+    text: bool = False
 
     @property
     def title(self) -> str:
         """The row's label with the unit: ``net energy [kWh]``."""
         return f"{self.label} [{self.unit}]" if self.unit else self.label
+
+    @property
+    def better_phrase(self) -> str:
+        """``lower is better``; ``""`` for a figure with no better way."""
+        return better_phrase(self.better)
+
+
+def better_phrase(better: str | None) -> str:
+    """How a table says which way is better: ``lower is better``."""
+    return "" if better is None else f"{better} is better"
 
 
 @dataclass(frozen=True)
@@ -102,10 +128,11 @@ class Kpi:
     counts the runs where it is not 0 (``runs_with_<name>``). ``safety``: a correct run
     has it 0. ``against_baseline``: given beside the baseline's in the KPI object, and
     one of the KPIs a report sets side by side. ``text``: its line in the command line's
-    text output (None: not printed). ``optional``: left out of the KPI object when None
-    (a figure only some runs have). ``records``: for a KPI that counts what the trackside
-    saw, the key under which a run's events document (cosim/export.py) lists each
-    sighting, and how to get them from a run.
+    text output (None: not printed), of which ``better`` says which way is better.
+    ``optional``: left out of the KPI object when None (a figure only some runs have).
+    ``records``: for a KPI that counts what the trackside saw, the key under which a
+    run's events document (cosim/export.py) lists each sighting, and how to get them from
+    a run.
     """
 
     name: str
@@ -116,6 +143,7 @@ class Kpi:
     against_baseline: bool = False
     count_runs_not_zero: bool = False
     text: Callable[[Any], str] | None = None
+    better: str | None = LOWER
     optional: bool = False
     records: tuple[str, Callable[[LineResult], Sequence[Any]]] | None = None
 
@@ -185,8 +213,9 @@ def _worst_excess_kmh(result: LineResult) -> dict[int, float]:
 def punctuality(delays_s: list[float | None]) -> dict[str, Any]:
     """The operator's view of the arrivals (``TrainRun.arrival_delays_s``, None: due
     and not made): how many were due or made, how many not made, the share [%] on time
-    within each of :data:`ON_TIME_WITHIN_MIN` minutes (one not made is not on time), and
-    the mean and the largest delay [s] of those made (None where there are none)."""
+    within each of :data:`ON_TIME_WITHIN_MIN` minutes (one not made is not on time), the
+    signed mean and the largest delay [s] of those made (None where there are none), and
+    :func:`lateness`'s figures of those made."""
     made = [d for d in delays_s if d is not None]
     out: dict[str, Any] = {"arrivals": len(delays_s), "not_made": len(delays_s) - len(made)}
     for minutes in ON_TIME_WITHIN_MIN:
@@ -196,7 +225,23 @@ def punctuality(delays_s: list[float | None]) -> dict[str, Any]:
         )
     out["mean_delay_s"] = round(float(np.mean(made)), 1) if made else None
     out["max_delay_s"] = round(max(made), 1) if made else None
+    out.update(lateness(made))
     return out
+
+
+def lateness(made_s: list[float]) -> dict[str, Any]:
+    """Lateness as a railway reports it, of the arrivals made (delays [s], negative
+    early): the mean lateness counting an early arrival as 0 (``mean_lateness_s``), and
+    the early arrivals apart: how many (``early_arrivals``) and how early on average
+    (``mean_earliness_s`` [s], positive); None where there is nothing to average."""
+    early = [-d for d in made_s if d < 0.0]
+    return {
+        "mean_lateness_s": (
+            round(float(np.mean([max(d, 0.0) for d in made_s])), 1) if made_s else None
+        ),
+        "early_arrivals": len(early),
+        "mean_earliness_s": round(float(np.mean(early)), 1) if early else None,
+    }
 
 
 def train_rows(result: LineResult) -> dict[str, dict[str, Any]]:
@@ -316,6 +361,17 @@ def retiming_summary(log: list[dict[str, Any]]) -> dict[str, Any]:
     }
 
 
+def _on_time_text(p: Mapping[str, Any]) -> str:
+    """The punctuality KPI's line: the share on time within the stated tolerance."""
+    if not p["arrivals"]:
+        return "no arrival was due within the run"
+    minutes = ON_TIME_TOLERANCE_MIN
+    return (
+        f"on time within {minutes} min: {p[f'within_{minutes}_min_pct']} % of {p['arrivals']}"
+        + (" (none made)" if p["max_delay_s"] is None else "")
+    )
+
+
 # ---------------------------------------------------------------------------- the table
 
 #: every entry of a run's KPI object after its trains, in the object's order
@@ -325,11 +381,12 @@ KPIS: tuple[Kpi, ...] = (
         "conformity",
         _conformity_kpi,
         (
-            Figure("mean_end_to_end", "end-to-end conformity, mean", "%"),
+            Figure("mean_end_to_end", "end-to-end conformity, mean", "%", better=NEARER_ZERO),
             Figure("mean_abs_section", "|section conformity|, mean", "%"),
-            Figure("max_section", "section conformity, max", "%", swept=False),
+            Figure("max_section", "section conformity, max", "%", swept=False, better=NEARER_ZERO),
         ),
         against_baseline=True,
+        better=NEARER_ZERO,
         text=lambda c: (
             "end to end: no train arrived"
             if c["mean_end_to_end"] is None
@@ -362,23 +419,36 @@ KPIS: tuple[Kpi, ...] = (
                     f"punctuality: arrivals within {minutes} min of the timetable",
                     "%",
                     swept=minutes == 3,
+                    better=HIGHER,
                 )
                 for minutes in ON_TIME_WITHIN_MIN
             ),
-            Figure("mean_delay_s", "punctuality: arrival delay, mean", "s"),
-            Figure("max_delay_s", "punctuality: arrival delay, largest", "s"),
+            Figure(
+                "mean_lateness_s",
+                "punctuality: lateness, mean (an early arrival as 0)",
+                "s",
+                text=True,
+            ),
+            Figure("early_arrivals", "punctuality: early arrivals", swept=False, text=True),
+            Figure(
+                "mean_earliness_s",
+                "punctuality: how early the early arrivals came, mean",
+                "s",
+                swept=False,
+                text=True,
+            ),
+            Figure(
+                "mean_delay_s",
+                "punctuality: arrival delay, signed mean (early negative)",
+                "s",
+                better=NEARER_ZERO,
+                text=True,
+            ),
+            Figure("max_delay_s", "punctuality: arrival delay, largest", "s", text=True),
         ),
         against_baseline=True,
-        text=lambda p: (
-            "no arrival was due within the run"
-            if not p["arrivals"]
-            else f"arrivals on time within 3 min: {p['within_3_min_pct']} % of {p['arrivals']}"
-            + (
-                " (none made)"
-                if p["max_delay_s"] is None
-                else f" (largest delay {p['max_delay_s']} s)"
-            )
-        ),
+        text=_on_time_text,
+        better=HIGHER,
     ),
     Kpi(
         "trains_not_arrived",
@@ -417,8 +487,12 @@ KPIS: tuple[Kpi, ...] = (
         "link",
         "link",
         lambda r: r.link,
-        (Figure("link_failures", "link failures"), Figure("connects", "link connects")),
+        (
+            Figure("link_failures", "link failures"),
+            Figure("connects", "link connects", better=None),
+        ),
         text=lambda k: f"failures {k['link_failures']}, connects {k['connects']}",
+        better=None,
     ),
     Kpi("retiming", "re-timings by the ground", lambda r: retiming_summary(r.retimings())),
     Kpi("ground_restarts", "ground restarts", lambda r: r.restarts),
@@ -433,7 +507,7 @@ KPIS: tuple[Kpi, ...] = (
         "realtime_factor",
         "simulated seconds per wall-clock second",
         lambda r: round(r.sim_s / r.wall_s, 1) if r.wall_s > 0 else None,
-        (Figure("", "simulated seconds per wall-clock second"),),
+        (Figure("", "simulated seconds per wall-clock second", better=HIGHER),),
     ),
 )
 #: the KPI whose baseline figure the KPI object also gives on top (``baseline_<name>``,
@@ -445,6 +519,16 @@ DRIVER_LABELS = {"advised": "advised", "minimum-time": "baseline", "human": "hum
 HEADLINE_PREFIX = {"minimum-time": "baseline", "human": "human_baseline"}
 #: how the command line's text names a baseline's figure beside the run's
 TEXT_LABELS = {"minimum-time": "baseline", "human": "human baseline"}
+#: each baseline in one sentence, by driver, for a reader of the text or the report
+#: (docs/line-run.md "The baseline" and "The human-driver baseline")
+BASELINE_DEFINITIONS = {
+    "minimum-time": "the same day (trains, timetable, events, radio, seed) driven to the "
+    "static limits less the scenario's margin, full traction and late braking, without "
+    "advice, without target points and without re-timing",
+    "human": "the same day driven as a careful heavy-haul driver without advice drives "
+    "it (8 km/h under the limit, coasting before each braking point, cyclic braking on "
+    "long descents), without target points and without re-timing",
+}
 
 
 def by_name(name: str) -> Kpi:
@@ -520,24 +604,42 @@ def dig(kpis: Mapping[str, Any], dotted: str) -> float | None:
     return obj if isinstance(obj, int | float) else None
 
 
+def _shown(value: Any) -> str:
+    """A figure in the text: ``-`` where a run has none (never "None")."""
+    return "-" if value is None else str(value)
+
+
 def text_lines(kpis: Mapping[str, Any]) -> list[str]:
     """The KPIs of one run as the command line prints them: one line each of those with a
-    ``text``, each baseline's beside it where the KPI object has it."""
+    ``text``, then one for each of its figures marked ``text``; each baseline's beside it
+    where the KPI object has it, and which way is better at the end."""
     baselines = kpis.get("baselines", {})
     lines = []
     for kpi in KPIS:
-        if kpi.text is None or kpi.name not in kpis:
+        text = kpi.text
+        if text is None or kpi.name not in kpis:
             continue
-        line = f"  {kpi.label}: {kpi.text(kpis[kpi.name])}"
-        beside = [
-            f"{TEXT_LABELS[name]} {kpi.text(figures[kpi.name])}"
-            for name, figures in baselines.items()
-            if kpi.name in figures
-        ]
-        if beside:
-            line += f" ({'; '.join(beside)})"
-        lines.append(line)
+        against = [(name, f[kpi.name]) for name, f in baselines.items() if kpi.name in f]
+        line = f"  {kpi.label}: {text(kpis[kpi.name])}"
+        beside = [f"{TEXT_LABELS[name]} {text(value)}" for name, value in against]
+        lines.append(_with_better(line, beside, kpi.better))
+        for figure in kpi.figures:
+            if figure.text:
+                path = kpi.path(figure)
+                line = f"  {figure.title}: {_shown(dig(kpis, path))}"
+                beside = [
+                    f"{TEXT_LABELS[name]} {_shown(dig({kpi.name: value}, path))}"
+                    for name, value in against
+                ]
+                lines.append(_with_better(line, beside, figure.better))
     return lines
+
+
+def _with_better(line: str, beside: list[str], better: str | None) -> str:
+    """A line of the text, the baselines' figures beside it, and which way is better."""
+    if beside:
+        line += f" ({'; '.join(beside)})"
+    return f"{line} [{better_phrase(better)}]" if better is not None else line
 
 
 # ------------------------------------------------------------------------------ a sweep

@@ -270,7 +270,7 @@ const clearRestriction = (id) => twoClicks("restriction", id, `/api/restriction/
 
 const LD = { width: 1560, left: 74, right: 14, rowKm: 100, rowH: 124 };
 // y offsets inside a row
-const Y = { names: 12, upLabel: 27, upSignal: 35, up: 45, down: 71, downSignal: 81, downLabel: 98, ruler: 117 };
+const Y = { names: 12, upLabel: 27, upSignal: 35, up: 45, between: 62, down: 71, downSignal: 81, downLabel: 98, ruler: 117 };
 
 function lineRows(line) {
   const rows = [];
@@ -412,7 +412,8 @@ function drawLine(snap) {
       if (headIn) {
         const text = `${train.number} · ${fmt(train.speed_kmh, 0)} km/h ${up ? "▶" : "◀"}` +
           (train.alarms.length ? " ⚠" : "") + (train.valid ? "" : ` ${fmt(train.info_age_s, 0)} s old`);
-        labels.push({ group, text, x: (xa + xb) / 2, y: row.y + (up ? Y.upLabel : Y.downLabel),
+        labels.push({ group, text, number: train.number, x: (xa + xb) / 2,
+          y: row.y + (up ? Y.upLabel : Y.downLabel), between: row.y + Y.between,
           alarm: train.alarms.length > 0 });
       }
     }
@@ -421,21 +422,25 @@ function drawLine(snap) {
   $("line-dynamic").replaceChildren(layer);
 }
 
-// A train's label goes above (UP) or below (DOWN) its track where it does not cover another
-// label: trains in alarm first, then along the line. A train without room shows no label
-// (its tooltip and the trains table still name it): with hundreds of trains on the line
-// the labels would otherwise be unreadable over each other.
+// Every train on the line is named. Its label (number, speed, way) goes above (UP) or below
+// (DOWN) its track where it does not cover another label: trains in alarm first, then
+// along the line. Where there is no room for it, the train's number alone goes there, or
+// else between the two tracks; where even that is taken (trains nose to tail), the number
+// goes above or below its track over the other label: a reader can still tell the trains
+// apart by their tooltips, and never sees a train with no name.
 function placeLabels(labels) {
   const taken = new Map(); // label row y -> [[x0, x1], ...] taken
+  const spanOf = (label, text) => {
+    const half = text.length * LABEL_CHAR_PX / 2 + 3;
+    return [label.x - half, label.x + half];
+  };
+  const free = (y, span) => !(taken.get(y) || []).some(([a, b]) => span[0] < b && a < span[1]);
   labels.sort((a, b) => (b.alarm - a.alarm) || (a.x - b.x));
   for (const label of labels) {
-    const half = label.text.length * LABEL_CHAR_PX / 2 + 3;
-    const span = [label.x - half, label.x + half];
-    const row = taken.get(label.y) || [];
-    if (row.some(([a, b]) => span[0] < b && a < span[1])) continue;
-    row.push(span);
-    taken.set(label.y, row);
-    label.group.append(s("text", { x: label.x, y: label.y }, label.text));
+    const tries = [[label.y, label.text], [label.y, label.number], [label.between, label.number]];
+    const [y, text] = tries.find(([ty, tt]) => free(ty, spanOf(label, tt))) || tries[1];
+    taken.set(y, [...(taken.get(y) || []), spanOf(label, text)]);
+    label.group.append(s("text", { x: label.x, y }, text));
   }
 }
 
