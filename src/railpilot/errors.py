@@ -19,6 +19,18 @@ class RailpilotError(Exception):
     """Base class of every error railpilot raises on purpose."""
 
 
+class _Missing:
+    """The value of a key a file leaves out (:data:`MISSING`)."""
+
+    def __repr__(self) -> str:
+        return "<missing>"
+
+
+#: the value a :class:`ConfigError` names for a required key that is not there: its
+#: message says the key is missing instead of showing a value the file never wrote
+MISSING: Any = _Missing()
+
+
 class ConfigError(RailpilotError, ValueError):
     """A parameter is out of its allowed range.
 
@@ -37,7 +49,10 @@ class ConfigError(RailpilotError, ValueError):
         self.value = value
         self.allowed = allowed
         # field and allowed may quote the file too (an entry's label, a neighbour's value)
-        message = f"{field} = {shown(value)} is not allowed: expected {allowed}"
+        if value is MISSING:
+            message = f"{field} is missing: expected {allowed}"
+        else:
+            message = f"{field} = {shown(value)} is not allowed: expected {allowed}"
         super().__init__(_shorter_numbers(message))
 
 

@@ -247,7 +247,7 @@ def test_bad_scenarios_are_refused_naming_the_field(change, field):
         # a missing field is said missing (the value shown was the op's, 'tsr_set')
         ({"reason": None}, "events[0].reason: required: why the restriction is set"),
         # every op a scenario may give, its own two included
-        ({"op": None}, "events[0].op = None is not allowed: expected one of tsr_set,"),
+        ({"op": None}, "events[0].op is missing: expected one of tsr_set,"),
         ({"op": "launch"}, "train_failure, ground_restart"),
     ],
 )

@@ -363,7 +363,7 @@ def test_missing_required_key(tmp_path):
         del data["speed_limits"][3]["limit_kmh"]
 
     message = _error(tmp_path, mutate)
-    assert "speed_limits[3] (b, both, km 10.000-13.000).limit_kmh = None" in message
+    assert "speed_limits[3] (b, both, km 10.000-13.000).limit_kmh is missing" in message
     assert "required" in message
 
 

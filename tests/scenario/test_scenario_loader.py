@@ -128,6 +128,9 @@ def test_controller_parameter_lists_become_tuples():
     assert params["theta_bounds"] == ((0.8, 1.3), (-0.2, 0.2))
 
 
+#: a key the file leaves out: its message says it is missing, no value shown
+MISSING_KEY = "<missing>"
+
 BAD = [
     # (case, mapping, dotted key, value as printed, fragment of what is allowed)
     ("unknown key", {"train": {"mas_t": 500}}, "train.mas_t", "500", "known key"),
@@ -204,7 +207,7 @@ BAD = [
         "constant reference without deceleration",
         {"reference": {"shape": "constant"}},
         "reference.decel_mps2",
-        "None",
+        MISSING_KEY,
         "required",
     ),
     (
@@ -218,7 +221,7 @@ BAD = [
         "segment missing a key",
         {"line": {"gradients": [{"start_km": 2, "end_km": 3}]}},
         "line.gradients[0].permille",
-        "None",
+        MISSING_KEY,
         "required",
     ),
     ("table expected", {"train": 3}, "train", "3", "a table"),
@@ -234,7 +237,7 @@ def test_bad_input_raises_scenario_error_naming_key_value_and_allowed(mapping, k
         scenario_from_mapping({"name": "t", **mapping})
     message = str(info.value)
     assert info.value.field == key
-    assert message.startswith(f"{key} = {value}")
+    assert message.startswith(f"{key} is missing" if value is MISSING_KEY else f"{key} = {value}")
     assert allowed in message
 
 

@@ -12,7 +12,7 @@ from typing import Annotated, Any, Literal
 import pytest
 from pydantic import Field
 
-from railpilot.errors import ConfigError, ScenarioError
+from railpilot.errors import MISSING, ConfigError, ScenarioError
 from railpilot.scenario.consist_file import (
     ConsistError,
     consist_preset,
@@ -119,7 +119,7 @@ def test_an_unknown_key_is_refused_listing_the_table_s_keys() -> None:
 
 def test_a_missing_key_says_what_it_must_be() -> None:
     fault = _fault(Tree, {"leaves": []})
-    assert (fault.field, fault.value) == ("name", None)
+    assert (fault.field, fault.value) == ("name", MISSING)
     assert fault.allowed == "the tree's name (the key is required)"
     fault = _fault(Tree, {"name": "oak", "leaves": [{}]})
     assert fault.allowed == "a finite number > 0 and <= 10 [mm] (the key is required)"

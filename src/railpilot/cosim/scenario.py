@@ -67,7 +67,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from railpilot.errors import ConfigError, ScenarioError
+from railpilot.errors import MISSING, ConfigError, ScenarioError
 from railpilot.ground.online_retimer import RetimerSettings
 from railpilot.ground.operations import OPS, Operation, OperationError, parse_operation
 from railpilot.line.loader import SHIPPED_LINES, load_line
@@ -255,9 +255,8 @@ def _events(
         elif op not in OPS:
             raise ScenarioError(
                 f"{where}op",
-                op,
-                f"one of {', '.join((*OPS, TRAIN_FAILURE, GROUND_RESTART))}"
-                + (" (the key is required)" if op is None else ""),
+                MISSING if op is None else op,
+                f"one of {', '.join((*OPS, TRAIN_FAILURE, GROUND_RESTART))}",
             )
         else:
             try:

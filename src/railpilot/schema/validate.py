@@ -16,7 +16,7 @@ import annotated_types as at
 from pydantic import BaseModel, ValidationError
 from pydantic.fields import FieldInfo
 
-from railpilot.errors import ConfigError, is_finite_number
+from railpilot.errors import MISSING, ConfigError, is_finite_number
 from railpilot.schema.fields import (
     BOUND_FAULTS,
     SAYS_FAULT,
@@ -148,7 +148,7 @@ def _in_file_words(
         )
     if kind == "missing":
         told = next((m.allowed for m in last.metadata if isinstance(m, WhenMissing)), None)
-        return error(where, None, told or words.required(_allowed(last, kind, words, None)))
+        return error(where, MISSING, told or words.required(_allowed(last, kind, words, None)))
     value = fault["input"]
     if words.float_values and last.annotation is float and _is_whole(value):
         value = float(value)  # the value as the reader reads it: -1 is -1.0
