@@ -13,6 +13,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from cosim.tiny_line_run import TINY
 from railpilot.cosim import kpis as table
 from railpilot.cosim.export import events_document
 from railpilot.cosim.line_run import Overspeed, SignalPassedAtRed, TsrViolation, run_line
@@ -20,17 +21,6 @@ from railpilot.cosim.scenario import line_scenario_from_mapping
 
 #: what the KPI object gives before the table's entries
 HEADER = ["scenario", "seed", "driver", "train_model", "sim_s", "trains"]
-
-TINY = {
-    "name": "tiny",
-    "line": "heavy-haul",
-    "seed": 5,
-    "duration_h": 0.5,
-    "channel": {"loss": 0.1},
-    "services": [
-        {"kind": "loaded", "from": 1, "to": 2, "first_departure_min": 1.0, "first_id": 101}
-    ],
-}
 
 
 @pytest.fixture(scope="module")

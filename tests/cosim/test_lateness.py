@@ -10,21 +10,11 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
+from cosim.tiny_line_run import TINY
 from railpilot.cosim import kpis as table
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.scenario import line_scenario_from_mapping
 from railpilot.reproduce import line_day
-
-TINY = {
-    "name": "tiny",
-    "line": "heavy-haul",
-    "seed": 5,
-    "duration_h": 0.5,
-    "channel": {"loss": 0.1},
-    "services": [
-        {"kind": "loaded", "from": 1, "to": 2, "first_departure_min": 1.0, "first_id": 101}
-    ],
-}
 
 
 def test_an_early_arrival_is_not_late_and_is_counted_apart() -> None:

@@ -13,21 +13,12 @@ from types import SimpleNamespace
 
 import pytest
 
+from cosim.tiny_line_run import TINY
 from railpilot.cli import main
 from railpilot.commands import line as command
 from railpilot.cosim.line_run import run_line
 from railpilot.cosim.scenario import line_scenario_from_mapping
 
-TINY = {
-    "name": "tiny",
-    "line": "heavy-haul",
-    "seed": 5,
-    "duration_h": 0.5,
-    "channel": {"loss": 0.1},
-    "services": [
-        {"kind": "loaded", "from": 1, "to": 2, "first_departure_min": 1.0, "first_id": 101}
-    ],
-}
 TINY_TOML = """
 name = "tiny"
 line = "heavy-haul"
