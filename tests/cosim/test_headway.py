@@ -6,6 +6,8 @@ from __future__ import annotations
 import dataclasses
 import functools
 import itertools
+import math
+import tomllib
 from pathlib import Path
 
 import numpy as np
@@ -14,9 +16,16 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from railpilot.cosim.driver import Service, shared_route
-from railpilot.cosim.headway import headway_conflicts, occupations
+from railpilot.cosim.headway import (
+    SHIFT_STEP_S,
+    headway_conflicts,
+    occupations,
+    shift_until_clear,
+    shifted,
+)
 from railpilot.cosim.line_run import run_line
-from railpilot.cosim.scenario import LineScenario, load_line_scenario
+from railpilot.cosim.scenario import LineScenario, line_scenario_from_mapping, load_line_scenario
+from railpilot.errors import ConfigError
 
 EXAMPLES = Path(__file__).parents[2] / "examples"
 
@@ -112,3 +121,47 @@ def test_the_co_simulation_holds_the_follower_exactly_when_the_check_finds_a_con
     late_s = moving_after_s(follower) - moving_after_s(leader)
     held = late_s > 2.0 or result.drivers[follower.train_id].red_signal_stops > 0
     assert held is conflict
+
+
+def _times(service: Service) -> list[float | None]:
+    """A service's stop times [s] in order (None where a stop has none: NaN is not equal
+    to itself)."""
+    return [
+        t if math.isfinite(t) else None
+        for stop in service.stops
+        for t in (stop.arrival_s, stop.departure_s)
+    ]
+
+
+@settings(max_examples=15, deadline=None)
+@given(spacing_min=st.floats(0.0, 12.0))
+def test_a_shift_clears_every_conflict_moving_only_later_trains_by_whole_steps(
+    spacing_min: float,
+) -> None:
+    """Two trains of one route at any spacing: shifted, none shares a block section with
+    the other; the first keeps its times, the second is moved later (never earlier) by a
+    whole number of 10 s steps, and not at all where there was no conflict."""
+    short_day = _short_day()
+    pair = _pair(short_day, 60.0 * spacing_min)
+    had = headway_conflicts(pair, short_day.line, 5.0)
+    out, moved = shift_until_clear(pair, short_day.line, 5.0, latest_s=24 * 3600.0)
+    assert headway_conflicts(out, short_day.line, 5.0) == []
+    assert _times(out[0]) == _times(pair[0])
+    by = moved.get(pair[1].train_id, 0.0)
+    assert (by > 0.0) is bool(had)
+    assert by % SHIFT_STEP_S == 0.0
+    assert _times(out[1]) == _times(shifted(pair[1], by))
+
+
+def test_a_file_may_ask_for_the_shift_and_a_run_too_short_for_it_is_refused() -> None:
+    """``conflicts = "shift"``: the short day's loaded trains a minute apart load, moved
+    later (the KPI object lists by how much); in a run too short to hold them it is an
+    error naming the key."""
+    data = tomllib.loads((EXAMPLES / "line_short_day.toml").read_text())
+    data["services"][0]["every_min"] = 1.0
+    scenario = line_scenario_from_mapping({**data, "conflicts": "shift"})
+    assert set(scenario.shifted_s) == {102, 103}
+    assert headway_conflicts(scenario.services, scenario.line, scenario.margin_kmh) == []
+    with pytest.raises(ConfigError) as refused:
+        line_scenario_from_mapping({**data, "conflicts": "shift", "duration_h": 0.2})
+    assert refused.value.field == "conflicts" and "after the run's end" in str(refused.value)

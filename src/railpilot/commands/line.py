@@ -397,6 +397,9 @@ def run(args: argparse.Namespace) -> int:
         if progress is not None:
             progress.clear()
     say = (lambda _: None) if args.quiet else log
+    if scenario.shifted_s:
+        moved = ", ".join(f"{i} by {s / 60.0:.1f} min" for i, s in scenario.shifted_s.items())
+        say(f"timetable conflicts cleared (conflicts = 'shift'): trains moved later: {moved}")
     seed = scenario.seed if args.seed is None else args.seed
     baselines = () if args.no_baseline else _baselines(args.baselines)
     if isinstance(args.runs, bool) or not 1 <= args.runs <= 100_000:

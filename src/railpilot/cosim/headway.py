@@ -29,6 +29,7 @@ the run shows; one it refuses holds a train at a red one.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -181,3 +182,47 @@ def headway_conflicts(
                 conflicts.append(HeadwayConflict(first, second))
     conflicts.sort(key=lambda c: (c.second.start_s, c.first.train_id, c.second.train_id))
     return conflicts
+
+
+#: a shifted train is moved later in steps of whole multiples of this [s] (the timetable's
+#: own resolution: its running times are rounded up to 10 s)
+SHIFT_STEP_S = 10.0
+
+
+def shifted(service: Service, by_s: float) -> Service:
+    """``service`` ``by_s`` [s] later at every stop (its running times and dwells kept)."""
+    stops = tuple(
+        dataclasses.replace(s, arrival_s=s.arrival_s + by_s, departure_s=s.departure_s + by_s)
+        for s in service.stops
+    )
+    return dataclasses.replace(service, stops=stops)
+
+
+def shift_until_clear(
+    services: Sequence[Service], line: RailLine, margin_kmh: float, latest_s: float
+) -> tuple[tuple[Service, ...], dict[int, float]]:
+    """``services`` with the later train of each conflict moved later until no two share
+    a block section: the earliest conflict first, its later train by the overlap rounded
+    up to :data:`SHIFT_STEP_S`, then the check again. Returns the services and how far
+    each moved train was moved [s], by id. A train that would have to leave after
+    ``latest_s`` [s since the run's start] is an error: the timetable holds more trains
+    than the line can run in the run."""
+    by_id = {s.train_id: s for s in services}
+    moved: dict[int, float] = {}
+    while conflicts := headway_conflicts(tuple(by_id.values()), line, margin_kmh):
+        earliest = conflicts[0]
+        later = by_id[earliest.second.train_id]
+        step = SHIFT_STEP_S * math.ceil(earliest.overlap_s / SHIFT_STEP_S + 1e-9)
+        if later.stops[0].departure_s + step > latest_s:
+            raise ConflictsRemain(earliest)
+        by_id[later.train_id] = shifted(later, step)
+        moved[later.train_id] = moved.get(later.train_id, 0.0) + step
+    return tuple(by_id[s.train_id] for s in services), moved
+
+
+class ConflictsRemain(Exception):
+    """No shift within the run clears ``conflict``."""
+
+    def __init__(self, conflict: HeadwayConflict) -> None:
+        super().__init__(conflict.describe())
+        self.conflict = conflict

@@ -496,6 +496,12 @@ KPIS: tuple[Kpi, ...] = (
     ),
     Kpi("retiming", "re-timings by the ground", lambda r: retiming_summary(r.retimings())),
     Kpi("ground_restarts", "ground restarts", lambda r: r.restarts),
+    Kpi(
+        "timetable_shifts_s",
+        "trains moved later to clear timetable conflicts [s]",
+        lambda r: {str(i): s for i, s in r.scenario.shifted_s.items()} or None,
+        optional=True,
+    ),
     Kpi("wall_s", "wall clock [s]", lambda r: round(r.wall_s, 3)),
     Kpi(
         "live",

@@ -7,6 +7,8 @@ TOML::
     line = "heavy-haul"             # a shipped line or a line file (relative to this file)
     seed = 1                        # the radio's and the reconnects' randomness
     duration_h = 9.0                # simulated time [h]
+    conflicts = "refuse"            # trains sharing a block section: refused, or "shift"
+                                    # (each later train moved later until none does)
 
     [channel]                       # cosim/channel.py: latency, loss, dead zones, outages
     loss = 0.3
@@ -100,7 +102,7 @@ from railpilot.schema.validate import check
 
 from .channel import ChannelModel
 from .driver import Service, Stop, fastest_run, planned_running_time_s
-from .headway import headway_conflicts
+from .headway import ConflictsRemain, headway_conflicts, shift_until_clear
 
 __all__ = [
     "MAX_SEED",
@@ -160,6 +162,9 @@ class LineScenario:
     retiming: RetimerSettings | None = field(default_factory=RetimerSettings)
     #: what follows each train's plan: ``point-mass`` or ``consist`` (docs/consist-run.md)
     train_model: str = "point-mass"
+    #: with ``conflicts = "shift"``: how far [s] each train was moved later to clear a
+    #: timetable conflict, by id (cosim/headway.py)
+    shifted_s: Mapping[int, float] = field(default_factory=dict)
 
     def with_(self, **changes: Any) -> LineScenario:
         """A copy with some fields changed (a sweep's seed, a test's channel)."""
@@ -350,6 +355,17 @@ def line_scenario_from_mapping(
     _dead_zones_on_line(channel, line)
     retiming = _retiming(top.retiming)
     services = _services(top.services, data["services"], line, margin)
+    shifts: dict[int, float] = {}
+    if top.conflicts == "shift":
+        try:
+            services, shifts = shift_until_clear(services, line, margin, duration_s)
+        except ConflictsRemain as left:
+            raise ScenarioError(
+                "conflicts",
+                "shift",
+                "'refuse', or 'shift' with room in the run for every train: moved later "
+                f"to clear it, a train would leave after the run's end ({left})",
+            ) from None
     _no_headway_conflicts(top.services, services, line, margin)
     events = _events(top.events, line, epoch_s, duration_s, {s.train_id for s in services})
     return LineScenario(
@@ -364,6 +380,7 @@ def line_scenario_from_mapping(
         events,
         retiming,
         top.trains.model,
+        shifts,
     )
 
 

@@ -192,3 +192,6 @@ class LineRunFileTable(LineRunTable):
         Field(default_factory=list)
     )
     trains: Annotated[TrainsTable, Says("a [trains] table")] = Field(default_factory=TrainsTable)
+    #: a timetable whose trains would share a block section: refused, or each later train
+    #: moved later until none does (docs/line-run.md, "Timetable conflicts")
+    conflicts: Literal["refuse", "shift"] = "refuse"
