@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from railpilot.eddy.scenario import EddyScenario
-from railpilot.errors import ScenarioError
+from railpilot.errors import MISSING, ScenarioError
 
 EXAMPLES = Path(__file__).resolve().parents[2] / "examples"
 BASE = {"kind": "eddy-brake", "torque_demand_nm": 3500, "initial_speed_kmh": 160}
@@ -118,5 +118,6 @@ def test_a_whole_number_written_as_a_float_is_taken():
 def test_a_missing_required_key_says_it_is_required():
     with pytest.raises(ScenarioError) as info:
         EddyScenario.from_mapping({"torque_demand_nm": 3500})
-    assert (info.value.field, info.value.value) == ("initial_speed_kmh", None)
+    assert (info.value.field, info.value.value) == ("initial_speed_kmh", MISSING)
     assert info.value.allowed == "a number (this key is required)"
+    assert str(info.value).startswith("initial_speed_kmh is missing: expected")
