@@ -182,7 +182,12 @@ def test_a_body_that_is_not_a_json_object_is_refused(client: TestClient) -> None
 
 
 def test_set_then_cancel(client: TestClient, ground: DemoGround) -> None:
-    response = client.post("/api/tsr", json=TSR_FORM, headers=AUTH)
+    # the demo's trains run at 75 km/h where the 40 km/h TSR would hold: asked first
+    warned = client.post("/api/tsr", json=TSR_FORM, headers=AUTH)
+    assert warned.status_code == 422 and "confirm" in warned.json()["errors"]
+    assert warned.json()["warning"]["trains"]
+    assert [t["session"] for t in client.get("/api/snapshot").json()["tsrs"]] == [1]
+    response = client.post("/api/tsr", json={**TSR_FORM, "confirm": True}, headers=AUTH)
     assert response.status_code == 200, response.text
     tsr = response.json()["ok"]
     assert (tsr["session"], tsr["start_km"], tsr["end_km"], tsr["limit_kmh"]) == (2, 300, 330, 40)

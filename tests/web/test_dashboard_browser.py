@@ -64,7 +64,13 @@ def test_dispatcher_sets_a_tsr_and_watches_each_acknowledgement(
         valid_until_min="90",
         reason="sun kink check",
     )
+    # a demo train runs at 75 km/h inside km 300-330: the ground sends nothing and asks
+    expect(page.locator("#tsr-warning li[data-train]")).not_to_have_count(0, timeout=SHOWN_MS)
+    expect(page.locator("#tsr-result")).to_have_text("")
+    assert [t["session"] for t in ground.snapshot(ground.now_s())["tsrs"]] == [1]
+    page.click("#tsr-confirm")
     expect(page.locator("#tsr-result")).to_contain_text("TSR 2 set", timeout=SHOWN_MS)
+    expect(page.locator("#tsr-warning")).to_be_hidden()
     concerned = [t for t in ground.train_ids() if ground.delivery_state(2, t) is not None]
     assert len(concerned) >= 4 and NO_LINK in concerned
     for train in concerned:  # sent, not yet acknowledged: time has not moved

@@ -49,7 +49,7 @@ def test_the_demo_line_has_its_incidents(ground: DemoGround) -> None:
 
 
 def test_a_tsr_goes_pending_then_active_train_by_train(ground: DemoGround) -> None:
-    result = ground.set_tsr(TSR_FORM, "d1", ground.now_s())
+    result = ground.set_tsr({**TSR_FORM, "confirm": True}, "d1", ground.now_s())
     session = result["ok"]["session"]
     trains = [d["train"] for d in result["ok"]["deliveries"]]
     assert {ground.delivery_state(session, t) for t in trains} == {TsrState.PENDING_SET}

@@ -306,6 +306,13 @@ def _register_ground(subparsers: argparse._SubParsersAction) -> None:
             parent = groups[words[0]]
         p = parent.add_parser(words[-1], help=description, description=description)
         _add_operation_fields(p, op)
+        if op == "tsr_set":
+            p.add_argument(
+                "--confirm",
+                action="store_true",
+                help="send it even over trains that already run above its limit there "
+                "(without it, the ground lists them and sends nothing)",
+            )
         _add_admin(p)
         p.set_defaults(func=_ground_admin, op=op)
 
@@ -705,6 +712,8 @@ def _ground_admin(args: argparse.Namespace) -> int:
         if name == "trains":
             value = "all" if value == ["all"] else [int(v) if v.isdigit() else v for v in value]
         request[name] = value
+    if getattr(args, "confirm", False):
+        request["confirm"] = True
     try:
         response = asyncio.run(admin_request(request, port=args.admin_port))
     except (OSError, TimeoutError, AdminError) as exc:
@@ -712,6 +721,9 @@ def _ground_admin(args: argparse.Namespace) -> int:
         return 1
     if args.json:
         print_json(response)
+    if response.get("warning"):
+        _print_tsr_warning(response["warning"])
+        return 2
     if not response.get("ok"):
         errors = response.get("errors") or {"request": response.get("error")}
         for field, message in errors.items():
@@ -732,6 +744,19 @@ def _ground_admin(args: argparse.Namespace) -> int:
         log(f"railpilot: error: refused for train(s) {', '.join(refused)}")
         return 2
     return 0
+
+
+def _print_tsr_warning(warning: Mapping[str, Any]) -> None:
+    """A TSR the ground did not send: the trains it would catch above its limit, one line
+    each (ground/tsr_warning.py)."""
+    trains = warning.get("trains", [])
+    log(
+        f"railpilot: warning: TSR not sent: {len(trains)} train(s) already above its limit of "
+        f"{warning.get('limit_kmh')} km/h there or too close to slow down:"
+    )
+    for train in trains:
+        log(f"  {train.get('text')}")
+    log("railpilot: run it again with --confirm to send it anyway")
 
 
 def _login() -> str:

@@ -49,6 +49,7 @@ from railpilot.ground.dispatch import GroundDispatch
 from railpilot.ground.host import refuse_keyless
 from railpilot.ground.operations import OperationError, parse_operation
 from railpilot.ground.targets import is_clear
+from railpilot.ground.tsr_warning import refuse_unconfirmed
 from railpilot.line.loader import load_line
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link import (
@@ -211,9 +212,16 @@ class _SimDispatchHost:
     def sync(self) -> None:
         self.sim.host.sync(t for t, c in self.sim.live.items() if c.open)
 
-    def execute_now(self, op: str, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
-        operation = parse_operation(op, fields, line=self.line, now_s=self.sim.now_s)
+    def execute_now(
+        self, op: str, fields: Mapping[str, Any], actor: str, *, confirm: bool = False
+    ) -> dict[str, Any]:
+        now = self.sim.now_s
+        operation = parse_operation(op, fields, line=self.line, now_s=now)
         refuse_keyless(operation, self.sim.keys, "")  # as the live ground
+        registry = self.sim.dispatch.registry
+        refuse_unconfirmed(
+            operation, registry.reports(), now, validity_s=registry.validity_s, confirm=confirm
+        )
         return dict(self.sim.operate(operation, actor).result)
 
 

@@ -616,6 +616,8 @@ class _LiveRun:
         """The dispatcher's operation through the ground's admin port; while the ground is
         down it is tried again ``RETRY_WHILE_DOWN_S`` later."""
         request = {"op": event.label, **event.fields, "actor": "scenario"}
+        if event.label == "tsr_set":  # the scenario's intent: sent whatever trains it catches
+            request["confirm"] = True
         while True:
             if self.ground_up:
                 try:

@@ -8,7 +8,8 @@ part of the train-ground link (there is no authentication on it beyond "you can 
 A request is an operation of the one schema the admin port, the dashboard's HTTP API and
 the command line share (ground/operations.py, docs/link-operations.md): ``"op"`` and the
 operation's fields, in the dispatcher's units (km posts in km, km/h, minutes from now),
-plus who asks (``"actor"``, default ``"admin"``, kept in the store's audit log)::
+plus who asks (``"actor"``, default ``"admin"``, kept in the store's audit log) and, for
+``tsr_set`` only, ``"confirm"`` (true or false, default false)::
 
     {"op": "status"}
     {"op": "tsr_set", "start_km": 12.3, "end_km": 13.1, "limit_kmh": 45,
@@ -20,9 +21,13 @@ plus who asks (``"actor"``, default ``"admin"``, kept in the store's audit log):
     {"op": "dispatch", "trains": "all", "text": "hold at next station"}
 
 Responses: ``{"ok": true, "result": {...}}`` or ``{"ok": false, "error": "...", "errors":
-{field: message}}`` (nothing was done). A result's ``deliveries`` maps each train id to
-``"sending"`` (connected; resent until acknowledged), ``"queued until the train
-registers"`` or ``"error: ..."``.
+{field: message}}`` (nothing was done). A ``tsr_set`` over trains that already run above
+its limit there, or too close to it to slow down (ground/tsr_warning.py), is not sent
+unless it says ``"confirm": true``: the answer is ``ok: false`` with ``errors`` naming
+``confirm`` and ``"warning": {"limit_kmh": ..., "trains": [{"train", "where", "km",
+"speed_kmh", "over_limit_kmh", "distance_m", "report_age_s"}, ...]}``. A result's
+``deliveries`` maps each train id to ``"sending"`` (connected; resent until acknowledged),
+``"queued until the train registers"`` or ``"error: ..."``.
 """
 
 from __future__ import annotations
@@ -35,6 +40,7 @@ from typing import Any
 
 from railpilot.errors import RailpilotError
 from railpilot.ground.operations import OperationError
+from railpilot.ground.tsr_warning import TsrWarning, confirm_flag
 
 from .dispatch_host import DispatchHost
 from .logfmt import kv
@@ -128,9 +134,14 @@ class AdminServer:
                 raise OperationError(
                     {"actor": f"{actor!r} is not allowed: expected a name of 1 to 64 characters"}
                 )
+            confirm = confirm_flag(fields, op)
+            fields.pop("confirm", None)
             kv(log, logging.INFO, "admin_request", op=op, actor=actor)
-            result = await self.host_app.execute(op, fields, actor.strip())
+            result = await self.host_app.execute(op, fields, actor.strip(), confirm=confirm)
             return {"ok": True, "result": result}
+        except TsrWarning as exc:
+            kv(log, logging.WARNING, "tsr_not_confirmed", trains=len(exc.trains))
+            return {"ok": False, "error": str(exc), "errors": exc.errors, "warning": exc.view()}
         except OperationError as exc:
             return {"ok": False, "error": str(exc), "errors": exc.errors}
 

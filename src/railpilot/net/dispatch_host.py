@@ -11,7 +11,9 @@ and drives it in wall-clock time:
   re-enters the connection that is reporting the event;
 - a dispatcher's request (admin port, HTTP, CLI: one schema, ground/operations.py) is
   parsed once, carried out by the core, and its deliveries sent in batches so a broadcast
-  to a thousand trains does not hold up the receive path;
+  to a thousand trains does not hold up the receive path; a TSR that would catch trains
+  already above its limit is refused with the list of them until the request confirms it
+  (ground/tsr_warning.py);
 - at start, after the server has restored its records, the core takes back the TSRs,
   target-point ids, command numbers and declared restrictions from the store.
 
@@ -37,6 +39,7 @@ from railpilot.ground.host import refuse_keyless
 from railpilot.ground.journal import declared_restrictions
 from railpilot.ground.occupancy import Occupancy
 from railpilot.ground.operations import Status, parse_operation
+from railpilot.ground.tsr_warning import refuse_unconfirmed
 from railpilot.line.model import RailLine
 
 from .logfmt import kv
@@ -194,26 +197,32 @@ class DispatchHost:
 
     # ------------------------------------------------------------------ the dispatcher
 
-    async def execute(self, op: object, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
+    async def execute(
+        self, op: object, fields: Mapping[str, Any], actor: str, *, confirm: bool = False
+    ) -> dict[str, Any]:
         """Parse and carry out one operation; returns the result, with per-train delivery
         outcomes under ``deliveries`` (sent in batches, yielding to the loop between).
-        Raises :class:`OperationError` (nothing done)."""
-        decided = self._decide(op, fields, actor)
+        Raises :class:`OperationError` (nothing done); a TSR that would catch trains above
+        its limit raises :class:`~railpilot.ground.tsr_warning.TsrWarning` unless
+        ``confirm``."""
+        decided = self._decide(op, fields, actor, confirm)
         if isinstance(decided, dict):
             return decided
         deliveries = await self._carry_out_paced(decided.commands)
         return self._answer(op, actor, decided, deliveries)
 
-    def execute_now(self, op: object, fields: Mapping[str, Any], actor: str) -> dict[str, Any]:
+    def execute_now(
+        self, op: object, fields: Mapping[str, Any], actor: str, *, confirm: bool = False
+    ) -> dict[str, Any]:
         """:meth:`execute` with every delivery made at once (a dispatcher's form: a TSR
         goes to the trains it concerns, a few dozen at most on one line)."""
-        decided = self._decide(op, fields, actor)
+        decided = self._decide(op, fields, actor, confirm)
         if isinstance(decided, dict):
             return decided
         return self._answer(op, actor, decided, self._carry_out(list(decided.commands)))
 
     def _decide(
-        self, op: object, fields: Mapping[str, Any], actor: str
+        self, op: object, fields: Mapping[str, Any], actor: str, confirm: bool
     ) -> Outcome | dict[str, Any]:
         """The core's outcome of the operation (its record in the store made), or the
         status for ``status``."""
@@ -224,6 +233,13 @@ class DispatchHost:
             self.sync()
             return {**self.server.status(), "dispatch": self.dispatch.status(now)}
         self._flush()  # every train where it last said it was
+        refuse_unconfirmed(
+            operation,
+            self.dispatch.registry.reports(),
+            now,
+            validity_s=self.dispatch.registry.validity_s,
+            confirm=confirm,
+        )
         return self.host.operate(operation, actor, now)
 
     @staticmethod

@@ -9,7 +9,9 @@ Routes
 ------
 - ``GET /``: the page (static/index.html; its script and style under ``/static``);
 - ``GET /api/snapshot``: the current snapshot (JSON; the shared one the pushes send, below);
-- ``POST /api/tsr``: set a TSR from the form's fields (JSON object);
+- ``POST /api/tsr``: set a TSR from the form's fields (JSON object); one over trains
+  already above its limit answers 422 with the ``warning`` and is sent only with
+  ``confirm: true``;
 - ``POST /api/tsr/{session}/cancel``: cancel a TSR;
 - ``POST /api/dispatch``: send a dispatch command from the form's fields (JSON object);
 - ``POST /api/restriction``: declare a restriction (a section fault, a lost switch
@@ -231,7 +233,9 @@ def create_app(
 
     def answer(result: dict[str, Any]) -> Response:
         if "errors" in result:
-            return _json({"errors": result["errors"]}, 422)
+            # a TSR over trains already above its limit: the list, for the page to confirm
+            warning = {"warning": result["warning"]} if "warning" in result else {}
+            return _json({"errors": result["errors"], **warning}, 422)
         return _json(result)
 
     async def page(request: Request) -> Response:

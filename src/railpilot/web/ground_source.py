@@ -19,7 +19,8 @@ dispatch application on a running server (:class:`~railpilot.net.dispatch_host.D
 
 The forms' requests (a TSR and its cancel, a restriction and its clear, a dispatch command)
 go through ``DispatchHost.execute_now``: the same operation schema and validation as the
-admin port and the CLI (ground/operations.py).
+admin port and the CLI (ground/operations.py), and the same warning before a TSR over
+trains already above its limit (ground/tsr_warning.py).
 
 Threading: the server is not thread-safe, so the source must be used on the server's
 event loop thread only; run the dashboard in the same loop (:func:`serve_dashboard`).
@@ -44,6 +45,7 @@ from railpilot.ground.operations import OperationError
 from railpilot.ground.registry import TrainState
 from railpilot.ground.targets import is_clear, restricted_blocks
 from railpilot.ground.tsr_manager import LineTsr
+from railpilot.ground.tsr_warning import TsrWarning, confirm_flag
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link import TrainRecord, TsrState
 from railpilot.link.events import AppliedTsr
@@ -98,7 +100,9 @@ class DispatchApplication(Protocol):
 
     def sync(self) -> None: ...
 
-    def execute_now(self, op: str, fields: Mapping[str, Any], actor: str) -> dict[str, Any]: ...
+    def execute_now(
+        self, op: str, fields: Mapping[str, Any], actor: str, *, confirm: bool = False
+    ) -> dict[str, Any]: ...
 
 
 class ServerSource:
@@ -168,8 +172,16 @@ class ServerSource:
         return self.dispatch.version
 
     def set_tsr(self, fields: Mapping[str, Any], actor: str, now_s: float) -> dict[str, Any]:
+        """Set a TSR from the form's fields; one that would catch trains above its limit
+        answers ``{"errors": {"confirm": ...}, "warning": {...}}`` and is sent only when
+        the form comes back with ``confirm: true`` (ground/tsr_warning.py)."""
+        fields = dict(fields)
         try:
-            result = self.host.execute_now("tsr_set", fields, actor)
+            confirm = confirm_flag(fields, "tsr_set")
+            fields.pop("confirm", None)
+            result = self.host.execute_now("tsr_set", fields, actor, confirm=confirm)
+        except TsrWarning as exc:
+            return {"errors": exc.errors, "warning": exc.view()}
         except OperationError as exc:
             return {"errors": exc.errors}
         tsr = next(t for t in self.dispatch.tsrs.tsrs() if t.session == result["session"])

@@ -185,21 +185,26 @@ function showErrors(errors, form = TSR_FORM) {
 
 // A form: the token first, then its fields posted, the answer shown next to them. `form` is
 // its spec (above); its elements are `${name}-form`, `${name}-submit` and `${name}-result`.
-function sendForm(name, form, url, fields, done, clear) {
-  $(`${name}-form`).addEventListener("submit", async (event) => {
-    event.preventDefault();
+// `warned(warning, body, send)`, where given, shows an answer the ground sent nothing for
+// until it is confirmed (`warned(null)` withdraws it: every new send does).
+function sendForm(name, form, url, fields, done, clear, warned = null) {
+  const send = async (body) => {
     $(`${name}-result`).textContent = "";
+    if (warned) warned(null);
     if (!token()) {
       showErrors({ token: "enter the dispatcher token first" }, form);
       return;
     }
     $(`${name}-submit`).disabled = true;
     try {
-      const { status, data } = await post(url, fields());
+      const { status, data } = await post(url, body);
       if (status === 200 && data.ok) {
         showErrors({}, form);
         $(`${name}-result`).textContent = done(data.ok);
         for (const field of clear) $(`${form.input}${field}`).value = "";
+      } else if (warned && data.warning) {
+        showErrors({}, form);
+        warned(data.warning, body, send);
       } else {
         showErrors(data.errors || { form: `the server answered ${status}` }, form);
       }
@@ -208,14 +213,50 @@ function sendForm(name, form, url, fields, done, clear) {
     } finally {
       $(`${name}-submit`).disabled = false;
     }
+  };
+  $(`${name}-form`).addEventListener("submit", (event) => {
+    event.preventDefault();
+    send(fields());
   });
 }
+
+// A TSR over trains that already run above its limit there (or too close to it to slow
+// down): the ground sends nothing and lists them. The page shows the list and asks again,
+// as a cancel takes two clicks: "Set TSR anyway" sends the same fields confirmed; editing
+// the form or "Don't send" withdraws the question.
+const tsrWarning = h("div", { id: "tsr-warning", class: "warning", role: "alert", hidden: true });
+$("tsr-result").before(tsrWarning);
+
+function hideTsrWarning() {
+  tsrWarning.hidden = true;
+  tsrWarning.replaceChildren();
+}
+
+function askTsrConfirm(warning, body, send) {
+  if (!warning) {
+    hideTsrWarning();
+    return;
+  }
+  const trains = warning.trains || [];
+  tsrWarning.replaceChildren(
+    h("p", { class: "error" }, `Not sent: ${trains.length} train(s) already above ` +
+      `${fmt(warning.limit_kmh, 0)} km/h there or too close to slow down:`),
+    h("ul", {}, trains.map((t) => h("li", { "data-train": t.train }, t.text))),
+    h("button", {
+      type: "button", id: "tsr-confirm", class: "armed",
+      onclick: () => send({ ...body, confirm: true }),
+    }, "Set TSR anyway"),
+    " ",
+    h("button", { type: "button", id: "tsr-dismiss", onclick: hideTsrWarning }, "Don't send"));
+  tsrWarning.hidden = false;
+}
+$("tsr-form").addEventListener("input", hideTsrWarning);
 
 sendForm("tsr", TSR_FORM, "/api/tsr",
   () => Object.fromEntries(FIELDS.map((name) => [name, $(`f-${name}`).value])),
   (tsr) => `TSR ${tsr.session} set: km ${fmt(tsr.start_km, 3)}–${fmt(tsr.end_km, 3)} at ` +
     `${fmt(tsr.limit_kmh, 0)} km/h, sent to ${tsr.deliveries.length} train(s)`,
-  ["start_km", "end_km", "limit_kmh", "reason"]);
+  ["start_km", "end_km", "limit_kmh", "reason"], askTsrConfirm);
 
 sendForm("restriction", RESTRICTION_FORM, "/api/restriction",
   () => { // a block, or a km span on a track: the fields left blank are not sent
