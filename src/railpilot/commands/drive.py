@@ -151,7 +151,7 @@ def _run(args: argparse.Namespace) -> int:
         from railpilot.cosim.scenario import check_timetable
         from railpilot.onboard.timetable import load_timetable
 
-        timetable = load_timetable(args.timetable)
+        timetable = load_timetable(args.timetable, line)
         driven = (args.from_station, args.to_station)
         check_timetable(timetable.sections, line, preset.name, args.margin, driven)
         sections = timetable.between(*driven)

@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import Any
 
 from railpilot.errors import ConfigError
+from railpilot.schema.cross_checks import LineStations, station_of
 from railpilot.schema.reading import parse_text, read_document
 from railpilot.schema.timetable import TimetableFile
 from railpilot.schema.validate import Loc, check, dotted
@@ -55,9 +56,13 @@ class Timetable:
         raise ConfigError("--to", to_id, f"a station the timetable reaches after {from_id}")
 
 
-def parse_timetable(data: Mapping[str, Any], source: str = "<timetable>") -> Timetable:
+def parse_timetable(
+    data: Mapping[str, Any], source: str = "<timetable>", line: LineStations | None = None
+) -> Timetable:
     """A :class:`Timetable` from a parsed file, validated (module docstring; the format:
-    railpilot.schema.timetable)."""
+    railpilot.schema.timetable). With the ``line`` it runs on, each section's stations are
+    checked to be the line's before the sections' chaining: a station the line lacks is
+    named as such, not as the next section's break in the chain."""
 
     def place(loc: Loc, _: Any) -> str:
         # a key the file may not have is named with the file: it is not the file's own
@@ -68,6 +73,9 @@ def parse_timetable(data: Mapping[str, Any], source: str = "<timetable>") -> Tim
     sections: list[TimetableSection] = []
     for i, entry in enumerate(top.sections):
         where = f"sections[{i}]"
+        if line is not None:
+            station_of(f"{where}.from", entry.from_, line, ConfigError)
+            station_of(f"{where}.to", entry.to, line, ConfigError)
         if entry.from_ == entry.to:
             raise ConfigError(f"{where}.to", entry.to, "a station other than from")
         if sections and sections[-1].to_id != entry.from_:
@@ -85,14 +93,16 @@ def parse_timetable(data: Mapping[str, Any], source: str = "<timetable>") -> Tim
 SHIPPED = {"heavy-haul": "heavy_haul_timetable.toml"}
 
 
-def load_timetable(name_or_path: str | Path) -> Timetable:
+def load_timetable(name_or_path: str | Path, line: LineStations | None = None) -> Timetable:
     """A shipped timetable by its line's name ("heavy-haul") or a file; errors name the
-    file and the entry."""
+    file and the entry; with the ``line`` it runs on, its stations are checked first
+    (:func:`parse_timetable`)."""
     if isinstance(name_or_path, str) and name_or_path in SHIPPED:
         from importlib.resources import files
 
         text = files("railpilot.line.data").joinpath(SHIPPED[name_or_path]).read_text("utf-8")
         source = SHIPPED[name_or_path]
-        return parse_timetable(parse_text(text, source, "--timetable", ConfigError), source)
+        return parse_timetable(parse_text(text, source, "--timetable", ConfigError), source, line)
     p = Path(name_or_path)
-    return parse_timetable(read_document(p, "--timetable", "timetable file", ConfigError), str(p))
+    data = read_document(p, "--timetable", "timetable file", ConfigError)
+    return parse_timetable(data, str(p), line)
