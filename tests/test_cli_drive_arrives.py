@@ -5,6 +5,7 @@ and on what gradient (exit 1, nothing on stdout, a timetable's drive stopping th
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import pytest
@@ -119,3 +120,16 @@ def test_a_drive_that_stops_away_from_its_station_is_an_error(
     out, err = capsys.readouterr()
     assert out == ""
     assert f"stopped {words} station 2's stop point (km 15.820, on a descent of 12.0" in err
+
+
+@pytest.mark.slow
+def test_the_20000_t_train_with_distributed_power_comes_to_rest_and_arrives() -> None:
+    """Its remote locomotive's residual drive leaves it creeping at round-off speed at a
+    stand (sim/consist_run.py ``AT_REST_MPS``): the drive still ends at rest, at its stop."""
+    outcome = drive_module.drive(
+        load_line("heavy-haul"), train_preset("heavy-haul-20kt"), 1, 2, model="consist"
+    )
+    summary = outcome.summary()
+    assert math.isfinite(summary["running_time_s"])
+    assert abs(summary["stop_error_m"]) <= drive_module.ARRIVED_WITHIN_M
+    assert summary["max_overspeed_kmh"] == 0.0

@@ -22,4 +22,5 @@ class ShippedTrain(NamedTuple):
 SHIPPED_TRAINS: dict[str, ShippedTrain] = {
     "heavy-haul-loaded": ShippedTrain("heavy-haul-10kt", "freight_loaded"),
     "heavy-haul-empty": ShippedTrain("heavy-haul-10kt-empty", "freight_empty"),
+    "heavy-haul-20kt": ShippedTrain("heavy-haul-20kt-dp", "freight_loaded"),
 }

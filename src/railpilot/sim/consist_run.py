@@ -64,6 +64,10 @@ APPROACH_FACTOR = 1.5
 ACCEL_SMOOTHING_S = 2.0
 #: the least net deceleration [m/s^2] the stop is planned with (a steep descent)
 MIN_STOP_DECEL = 0.02
+#: a mass slower than this is at rest [m/s]: a distributed-power remote's residual drive
+#: force, balanced against its brake at a stand, leaves it creeping at round-off speeds
+#: (2.5e-10 m/s measured on the 20,000 t train), and the run would never end
+AT_REST_MPS = 1e-6
 #: the least speed the driver aims at on a profile before its stop [m/s]
 MIN_GOAL_MPS = 1.0
 #: most brake releases a run keeps the air state of (for the recharge margins)
@@ -732,7 +736,7 @@ def consist_kernel(
             metrics[M_OVER_LIMIT_S] += dt
         moving = False
         for i in range(n_mass):
-            if speeds[i] > 0.0:
+            if speeds[i] > AT_REST_MPS:
                 moving = True
             if speeds[i] > metrics[M_MAX_SPEED_MPS]:
                 metrics[M_MAX_SPEED_MPS] = speeds[i]
