@@ -25,7 +25,7 @@ from railpilot.errors import ConfigError
 from railpilot.schema.cross_checks import LineStations, station_of
 from railpilot.schema.reading import parse_text, read_document
 from railpilot.schema.timetable import TimetableFile
-from railpilot.schema.validate import Loc, check, dotted
+from railpilot.schema.validate import check, dotted
 
 
 @dataclass(frozen=True)
@@ -64,12 +64,7 @@ def parse_timetable(
     checked to be the line's before the sections' chaining: a station the line lacks is
     named as such, not as the next section's break in the chain."""
 
-    def place(loc: Loc, _: Any) -> str:
-        # a key the file may not have is named with the file: it is not the file's own
-        unknown = len(loc) == 1 and loc[0] not in TimetableFile.model_fields
-        return f"{source}: {loc[0]}" if unknown else dotted(loc)
-
-    top = check(TimetableFile, data, ConfigError, name=place)
+    top = check(TimetableFile, data, ConfigError, name=lambda loc, _: dotted(loc))
     sections: list[TimetableSection] = []
     for i, entry in enumerate(top.sections):
         where = f"sections[{i}]"
@@ -100,9 +95,16 @@ def load_timetable(name_or_path: str | Path, line: LineStations | None = None) -
     if isinstance(name_or_path, str) and name_or_path in SHIPPED:
         from importlib.resources import files
 
-        text = files("railpilot.line.data").joinpath(SHIPPED[name_or_path]).read_text("utf-8")
         source = SHIPPED[name_or_path]
-        return parse_timetable(parse_text(text, source, "--timetable", ConfigError), source, line)
-    p = Path(name_or_path)
-    data = read_document(p, "--timetable", "timetable file", ConfigError)
-    return parse_timetable(data, str(p), line)
+        text = files("railpilot.line.data").joinpath(source).read_text("utf-8")
+        data = parse_text(text, source, "--timetable", ConfigError)
+    else:
+        source = str(name_or_path)
+        data = read_document(Path(source), "--timetable", "timetable file", ConfigError)
+    try:
+        return parse_timetable(data, source, line)
+    except ConfigError as error:
+        # named with the file, as a line-run file's and a line file's errors are
+        named = ConfigError(error.field, error.value, error.allowed)
+        named.args = (f"{Path(source).name}: {error}",)
+        raise named from None
