@@ -220,7 +220,7 @@ def test_the_examples_load():
         ({"services": [BASE["services"][0] | {"from": 99}]}, "services[0].from"),
         ({"services": [BASE["services"][0] | {"to": 1}]}, "services[0].to"),
         ({"services": [BASE["services"][0] | {"count": 0}]}, "services[0].count"),
-        ({"services": [BASE["services"][0], BASE["services"][0]]}, "services"),
+        ({"services": [BASE["services"][0], BASE["services"][0]]}, "services[1].first_id"),
         ({"events": [{"at_min": 999.0, "op": "tsr_cancel", "session": 1}]}, "events[0].at_min"),
         ({"events": [BASE["events"][0] | {"limit_kmh": -5}]}, "events[0].limit_kmh"),
         ({"events": [{"at_min": 1.0, "op": "train_failure", "train": 999}]}, "events[0].train"),

@@ -227,7 +227,15 @@ def _services(
     uses = Counter(s.train_id for s in services)
     twice = sorted(i for i, n in uses.items() if n > 1)
     if twice:
-        raise ScenarioError("services", twice, "train ids used once (first_id and count overlap)")
+        # the entries that give the first id used twice: the later one is the one to change
+        entries = [i for i, t in enumerate(tables) if t.first_id <= twice[0] < t.first_id + t.count]
+        given = " and ".join(f"services[{i}]" for i in entries)
+        raise ScenarioError(
+            f"services[{entries[-1]}].first_id",
+            tables[entries[-1]].first_id,
+            f"train ids used once: {given} both give train {twice[0]} (first_id and count "
+            f"overlap; {len(twice)} id(s) in all)",
+        )
     return tuple(services)
 
 
