@@ -90,6 +90,10 @@ class GroundWire(asyncio.Transport):
         #: every event of the ground core, with the virtual time it came at
         self.ground_events: list[tuple[float, Event]] = []
         self._closed = False
+        #: answers written by the ground core and not yet delivered; set when none is
+        self._in_flight = 0
+        self._quiet = asyncio.Event()
+        self._quiet.set()
 
     def write(self, data: bytes) -> None:  # type: ignore[override]
         if self._closed:
@@ -102,7 +106,22 @@ class GroundWire(asyncio.Transport):
         self.ground_events += [(now, event) for event in self.ground.events()]
         answer = self.ground.data_to_send()
         if answer:
-            asyncio.get_running_loop().call_soon(self._deliver, answer)
+            self._in_flight += 1
+            self._quiet.clear()
+            asyncio.get_running_loop().call_soon(self._deliver_answer, answer)
+
+    async def quiet(self) -> None:
+        """Until every answer of the ground is delivered, those the client's replies
+        bring included."""
+        await self._quiet.wait()
+
+    def _deliver_answer(self, data: bytes) -> None:
+        try:
+            self._deliver(data)  # the client may write again: counted before this ends
+        finally:
+            self._in_flight -= 1
+            if self._in_flight == 0:
+                self._quiet.set()
 
     def inject(self, data: bytes) -> None:
         """Bytes from the ground's side that the ground core did not write (noise)."""

@@ -153,8 +153,7 @@ async def _garbage_then_quiet(garbage: int, lines: _Lines) -> tuple[bool, float,
     while not lines.of("frame_rejections_suppressed") and clock() < flooded_s + 20.0:
         clock.advance(FAST.cycle_s)
         client.on_tick(clock())
-        for _ in range(3):
-            await asyncio.sleep(0)  # a yield: the wire answers on the next turn of the loop
+        await wires[0].quiet()  # the ground's answers, and the client's replies to them
     outcome = (client.connected, clock() - flooded_s, list(lines.lines))
     stop.set()
     await task
