@@ -4,7 +4,9 @@ warn and send nothing unless the request confirms it (ground/tsr_warning.py)."""
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
+from collections.abc import AsyncIterator
 from typing import Any
 
 import pytest
@@ -38,14 +40,26 @@ def tsr(limit_kmh: float, **more: Any) -> dict[str, Any]:
     return {**OVER_THE_TRAIN, "limit_kmh": limit_kmh, **more}
 
 
+@contextlib.asynccontextmanager
+async def _admin_port() -> AsyncIterator[tuple[Any, DispatchHost, int]]:
+    """The test train's rig with a dispatch host and its admin port, once the ground has
+    the train's first report: ``(rig, host, admin port)``."""
+    async with rig(timers=TIMERS) as r:
+        host = DispatchHost(r.server, LINE)
+        host.start()
+        admin = AdminServer(host)
+        _, port = await admin.start()
+        try:
+            await until(lambda: bool(r.running_infos()))
+            yield r, host, port
+        finally:
+            await admin.stop()
+            host.stop()
+
+
 def test_a_tsr_below_a_trains_speed_is_warned_about_and_sent_once_confirmed() -> None:
     async def scenario() -> None:
-        async with rig(timers=TIMERS) as r:
-            host = DispatchHost(r.server, LINE)
-            host.start()
-            admin = AdminServer(host)
-            _, port = await admin.start()
-            await until(lambda: bool(r.running_infos()))
+        async with _admin_port() as (r, host, port):
             answer = await admin_request(tsr(SPEED_KMH - 14), port=port)
             assert answer["ok"] is False
             assert set(answer["errors"]) == {"confirm"}
@@ -58,24 +72,15 @@ def test_a_tsr_below_a_trains_speed_is_warned_about_and_sent_once_confirmed() ->
             answer = await admin_request(tsr(SPEED_KMH - 14, confirm=True), port=port)
             assert answer["ok"] is True and answer["result"]["trains"] == [TRAIN_ID]
             await until(lambda: bool(r.onboard_of(TRAIN_ID, TsrApplied)))
-            await admin.stop()
-            host.stop()
 
     run(scenario())
 
 
 def test_a_tsr_no_train_runs_faster_than_is_sent_without_asking() -> None:
     async def scenario() -> None:
-        async with rig(timers=TIMERS) as r:
-            host = DispatchHost(r.server, LINE)
-            host.start()
-            admin = AdminServer(host)
-            _, port = await admin.start()
-            await until(lambda: bool(r.running_infos()))
+        async with _admin_port() as (_, _host, port):
             answer = await admin_request(tsr(SPEED_KMH + 10), port=port)
             assert answer["ok"] is True and "warning" not in answer
-            await admin.stop()
-            host.stop()
 
     run(scenario())
 
@@ -111,17 +116,10 @@ def test_the_cli_prints_one_line_per_train_and_exits_2_unless_confirmed(
         ]
 
     async def scenario() -> tuple[int, int, int]:
-        async with rig(timers=TIMERS) as r:
-            host = DispatchHost(r.server, LINE)
-            host.start()
-            admin = AdminServer(host)
-            _, port = await admin.start()
-            await until(lambda: bool(r.running_infos()))
+        async with _admin_port() as (_, host, port):
             refused = await asyncio.to_thread(main, argv(port))
             sets = len(host.dispatch.tsrs.tsrs())
             confirmed = await asyncio.to_thread(main, argv(port, "--confirm"))
-            await admin.stop()
-            host.stop()
             return refused, sets, confirmed
 
     refused, sets, confirmed = run(scenario())
