@@ -9,7 +9,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 from railpilot.commands._common import file_stem, log, out_dir_argument, print_json
-from railpilot.errors import ConfigError, LineError
+from railpilot.errors import ConfigError, LineError, RunFailed
 from railpilot.units import km_post_to_m, kmh_to_mps, m_to_km_post
 
 if TYPE_CHECKING:
@@ -121,14 +121,6 @@ def _check_on_line(
 
 
 def run(args: argparse.Namespace) -> int:
-    try:
-        return _run(args)
-    except DriveNotFinished as exc:
-        log(f"railpilot: error: {exc}")
-        return 1
-
-
-def _run(args: argparse.Namespace) -> int:
     from railpilot.line import load_line
     from railpilot.onboard.drive import TargetRequest, TsrRequest, drive, train_preset
 
@@ -184,8 +176,9 @@ def _run(args: argparse.Namespace) -> int:
     return 0
 
 
-class DriveNotFinished(Exception):
-    """The train did not come to its stop: the command says why and exits 1."""
+class DriveNotFinished(RunFailed):
+    """The train did not come to its stop: the command says why and exits 1 (a run that
+    cannot finish, errors.RunFailed)."""
 
 
 def _check_arrived(outcome: DriveOutcome, line: RailLine) -> None:

@@ -374,7 +374,8 @@ def line_scenario_from_mapping(
                 "'refuse', or 'shift' with room in the run for every train: moved later "
                 f"to clear it, a train would leave after the run's end ({left})",
             ) from None
-    _no_headway_conflicts(top.services, services, line, margin)
+    else:  # a shift ends only once no conflict is left
+        _no_headway_conflicts(top.services, services, line, margin)
     events = _events(top.events, line, epoch_s, duration_s, {s.train_id for s in services})
     return LineScenario(
         top.name,
