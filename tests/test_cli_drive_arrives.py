@@ -1,6 +1,8 @@
-"""A drive arrives or the tool says why not: a section the train cannot climb is refused
-before anything runs, and a train that stops away from its station is an error naming where
-and on what gradient (exit 1, nothing on stdout, a timetable's drive stopping there)."""
+"""A drive arrives or the tool says why not: a train arrives at a station on a steep
+descent, from either side, at its stop and on time; a section the train cannot climb is
+refused before anything runs, and a train that stops away from its station is an error
+naming where and on what gradient (exit 1, nothing on stdout, a timetable's drive stopping
+there)."""
 
 from __future__ import annotations
 
@@ -49,6 +51,39 @@ signals = [
   { id = "U3X", km = 28.850, direction = "up", kind = "exit" },
 ]
 """
+
+
+#: 30 km, the middle station (its loop km 14.15-15.85) on a 3 km stretch of 12 per mille:
+#: arriving going up, the train brakes to its stop down the grade; going down it climbs to it
+#: (a loaded train cannot start up it, but arrives with the way it has on)
+STATION_ON_DESCENT = DESCENT_LINE.replace(
+    """  { start_km = 0.0, end_km = 8.0, permille = 0.0 },
+  { start_km = 8.0, end_km = 22.0, permille = -12.0 },
+  { start_km = 22.0, end_km = 30.0, permille = 0.0 },""",
+    """  { start_km = 0.0, end_km = 13.0, permille = 0.0 },
+  { start_km = 13.0, end_km = 16.0, permille = -12.0 },
+  { start_km = 16.0, end_km = 30.0, permille = 0.0 },""",
+)
+
+
+@pytest.mark.parametrize("limit_kmh", [60.0, 100.0])
+@pytest.mark.parametrize("train", ["heavy-haul-loaded", "heavy-haul-empty"])
+@pytest.mark.parametrize("from_id", [1, 3])
+def test_a_station_on_a_steep_descent_is_reached_at_its_stop_and_on_time(
+    tmp_path: Path, limit_kmh: float, train: str, from_id: int
+) -> None:
+    """The consist (every wagon, couplers, the freight air brake along the train: the
+    drive's default) arrives at station 2 from either side within 2 m of its stop point
+    and within 3 % of its plan's running time."""
+    assert STATION_ON_DESCENT != DESCENT_LINE
+    path = tmp_path / "station_on_descent.toml"
+    path.write_text(STATION_ON_DESCENT.replace("limit_kmh = 60.0", f"limit_kmh = {limit_kmh}"))
+    outcome = drive_module.drive(load_line(path), train_preset(train), from_id, 2, model="consist")
+    summary = outcome.summary()
+    assert abs(summary["stop_error_m"]) <= 2.0
+    planned = summary["planned_running_time_s"]
+    assert abs(summary["running_time_s"] - planned) <= 0.03 * planned
+    assert summary["max_overspeed_kmh"] == 0.0
 
 
 @pytest.fixture(scope="module")

@@ -75,7 +75,7 @@ from railpilot.onboard.drive import (
     train_preset,
 )
 from railpilot.onboard.mrsp import Mrsp, TargetStop, direction_sign, most_restrictive_profile
-from railpilot.onboard.planner import SpeedPlan, fastest, target_stop_net
+from railpilot.onboard.planner import SpeedPlan, fastest
 from railpilot.onboard.report import PlannedCurveReporter, remaining_time_s
 from railpilot.onboard.target_point import safety_distance_m
 from railpilot.sim.drive_profile import PlannedProfile
@@ -111,11 +111,17 @@ ODOMETRY_CYCLE_S = 1.0
 
 @lru_cache(maxsize=512)
 def shared_route(
-    line: RailLine, preset_name: str, from_id: int, to_id: int, margin: float
+    line: RailLine,
+    preset_name: str,
+    from_id: int,
+    to_id: int,
+    margin: float,
+    model: str = "point-mass",
 ) -> StationRoute:
-    """One station pair's route, shared by every train of that kind (its line tables are
-    cached on it)."""
-    return station_route(line, train_preset(preset_name), from_id, to_id, margin, (), (), 0.0)
+    """One station pair's route, shared by every train of that kind and ``model`` (its
+    line tables are cached on it)."""
+    preset = train_preset(preset_name)
+    return station_route(line, preset, from_id, to_id, margin, (), (), 0.0, model)
 
 
 @lru_cache(maxsize=512)
@@ -409,7 +415,9 @@ class TrainDriver:
         move at all (its way out is held)."""
         k = self._k
         from_id, to_id = self._pair(k)
-        route = shared_route(self.line, self.service.kind, from_id, to_id, self.margin_kmh)
+        route = shared_route(
+            self.line, self.service.kind, from_id, to_id, self.margin_kmh, self.model
+        )
         stops = self.service.stops
         planned = self.running_times.get(
             (from_id, to_id), stops[k + 1].arrival_s - stops[k].departure_s
@@ -603,13 +611,12 @@ class TrainDriver:
             return route.plan_to(end_s, sec, time_s, s0)
         if self.human is not None:
             preset = route.preset
-            stop_net = target_stop_net(preset.driving) if end_s < route.length_m else 0.0
             return human_curve(
                 preset.driving,
                 sec,
                 self.human,
                 planned_margin_mps=route.margin_mps,
-                stop_net_mps2=stop_net,
+                stop_net_mps2=route.stop_net_mps2(end_s),
                 release_s=sum(preset.brake.air.train_release_lead_s(preset.train.length_m)),
             )
         return route.fastest_to(end_s, sec)

@@ -155,8 +155,8 @@ def human_curve(
 
     ``sec`` is the planner's section: its ceiling the limits less ``planned_margin_mps``
     [m/s] (the scenario's margin); the human's margin replaces it where it is larger.
-    ``stop_net_mps2``: the least net deceleration of a stop at the end that is a target
-    (a red signal), as the planner's (planner.py ``target_stop_net``); 0 for the station.
+    ``stop_net_mps2``: the least net deceleration of the stop at the end, as the
+    onboard's plan brakes it (onboard/drive.py ``StationRoute.stop_net_mps2``).
     ``release_s``: how long the train's air brake takes to release along it [s] (its
     release delay and time constant): after a cycle's release the driver expects the
     train to hold its speed that long before it runs up again.

@@ -60,21 +60,10 @@ def _number(value: float | int | None) -> float:
     return math.nan if value is None else float(value)
 
 
-#: the reduction a stop is made with [kPa]
-STOP_REDUCTION_KPA = 70.0
-
-
-def stop_decel_mps2(consist: Consist, air: FreightAirBrake, reduction_kpa: float) -> float:
-    """The deceleration [m/s^2] a charged train's ``reduction_kpa`` gives once built up:
-    every braked vehicle's cylinder at ``rho r`` (the mass balance, brakes/freight_air.py),
-    its force in proportion to its full-service force, on the train's effective mass."""
-    bc_kpa = min(air.ar_to_bc_ratio * reduction_kpa, air.full_service_bc_kpa())
-    force_n = float(consist.service_brake_force_n().sum()) * bc_kpa / air.full_service_bc_kpa()
-    return force_n / float(consist.effective_masses_kg().sum())
-
-
 class ConsistDrive:
-    """A consist following the onboard's plan, stepped by the drive's event loop."""
+    """A consist following the onboard's plan, stepped by the drive's event loop; its
+    driver stops at ``stop_net_mps2`` [m/s^2] net of the line (the plan's station stop:
+    onboard/drive.py ``station_stop_net``)."""
 
     def __init__(
         self,
@@ -84,13 +73,13 @@ class ConsistDrive:
         stop_m: float,
         dt_s: float,
         duration_s: float,
+        stop_net_mps2: float,
         record_every_s: float = 1.0,
     ) -> None:
         air = FreightAirBrake(charged_kpa=consist.brake_pipe_kpa)
         driver = ConsistDriver(
             commands=(DriverCommand(at_s=0.0, follow=True),),
-            stop_decel_mps2=stop_decel_mps2(consist, air, STOP_REDUCTION_KPA),
-            stop_reduction_kpa=STOP_REDUCTION_KPA,
+            stop_net_mps2=stop_net_mps2,
             profile_m=tuple(profile.x_m.tolist()),
             profile_mps=tuple(profile.v_mps.tolist()),
             stop_m=stop_m,

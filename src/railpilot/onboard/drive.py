@@ -408,12 +408,12 @@ def drive(
     if model == "consist" and preset.consist is None:
         raise ConfigError("--model", model, f"point-mass: {preset.name} has no consist")
     route = station_route(
-        line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s
+        line, preset, from_station, to_station, margin_kmh, tsrs, targets, start_time_s, model
     )
     direction, departure = route.direction, route.departure_m
     mrsp = route.mrsp_at(0.0)
     end_s, quickest_sec = route.section_from(mrsp, 0.0, 0.0)
-    quickest = fastest(preset.driving, quickest_sec)
+    quickest = route.fastest_to(end_s, quickest_sec)
     check_reachable(route, quickest_sec, quickest, from_station, to_station)
     # the running time is the station pair's; a plan to a target stop gets its share
     target_time = (
@@ -510,7 +510,9 @@ def station_route(
     tsrs: tuple[TsrRequest, ...],
     targets: tuple[TargetRequest, ...],
     start_time_s: float,
+    model: str = "point-mass",
 ) -> StationRoute:
+    """The route of one station pair, planned for the train ``model`` names."""
     if not (math.isfinite(margin_kmh) and 0 <= margin_kmh <= 50):
         raise ConfigError("--margin", margin_kmh, "a margin in [0, 50] km/h")
     start = line.station(from_station)
@@ -529,7 +531,21 @@ def station_route(
         tsrs,
         targets,
         start_time_s,
+        station_stop_net(preset, model),
     )
+
+
+def station_stop_net(preset: TrainPreset, model: str) -> float:
+    """The least net deceleration [m/s^2] of a plan's stop at the station, for the train
+    that follows the plan. The consist's driver stops at the planning brake's deceleration
+    net of the line, its air brake adding what a descent takes away
+    (onboard/consist_drive.py), and its plan brakes so: at the planning brake's force less
+    the descent, the empty train's stop on 12 per mille would be 2 km at 0.01 m/s^2,
+    longer than its least application lets it brake. The point mass's precise stop
+    tracks the planning brake's force however the line falls (0: no floor); a floor there
+    put the shipped line's sections on descents 0.7 points further from their running
+    times."""
+    return preset.driving.brake_mps2 if model == "consist" else 0.0
 
 
 def _what_changed(before: Mrsp, after: Mrsp, tsr_received: bool) -> str:
@@ -559,6 +575,8 @@ class StationRoute:
     tsrs: tuple[TsrRequest, ...]
     targets: tuple[TargetRequest, ...]
     start_time_s: float
+    #: the least net deceleration [m/s^2] of the plan's stop at the station
+    station_stop_net_mps2: float = 0.0
 
     @cached_property
     def static(self) -> SpeedProfile:
@@ -661,20 +679,22 @@ class StationRoute:
             self.preset.driving,
             sec,
             max(time_s * min(share, 1.0), 1.0),
-            self._stop_net_mps2(end_s),
+            self.stop_net_mps2(end_s),
         )
 
     def fastest_to(self, end_s: float, sec: SectionGrid) -> SpeedPlan:
         """The fastest run of ``sec`` to its stop at ``end_s`` [m from the departure]
         (the baseline driver's), braked to a target stop as :meth:`plan_to` brakes."""
-        return fastest(self.preset.driving, sec, self._stop_net_mps2(end_s))
+        return fastest(self.preset.driving, sec, self.stop_net_mps2(end_s))
 
-    def _stop_net_mps2(self, end_s: float) -> float:
+    def stop_net_mps2(self, end_s: float) -> float:
         """The least net deceleration [m/s^2] of a plan's stop at ``end_s`` [m from the
         departure]: a target stop short of the station's (a red signal ahead) is braked
-        at ``target_stop_net`` however the line falls; the station's stop, planned for
-        its running time, at the planning brake's force (planner.py)."""
-        return target_stop_net(self.preset.driving) if end_s < self.length_m else 0.0
+        at ``target_stop_net`` however the line falls; the station's at
+        ``station_stop_net_mps2`` (:func:`station_stop_net`)."""
+        if end_s < self.length_m:
+            return target_stop_net(self.preset.driving)
+        return self.station_stop_net_mps2
 
 
 def _supervision(
@@ -857,6 +877,7 @@ def plan_follower(
             end_s,
             min(dt_s, CONSIST_MAX_DT_S),
             duration_s,
+            station_stop_net(preset, model),
             record_every_s=1.0 if record_every_s is None else record_every_s,
         )
     record_every = 1 if record_every_s is None else round(record_every_s / dt_s)

@@ -220,18 +220,22 @@ def _envelope(
                 braking = coast + min(regen / q[Q_MEFF], q[Q_BRAKE])
             else:
                 braking = coast + q[Q_BRAKE]
-                if braking <= 0.0:
+                if braking <= 0.0 and not (to_stop and stop_net >= q[Q_BRAKE]):
                     # the planning brake cannot hold the train here (a descent steeper
                     # than it): the plan brakes with the train's full service instead
                     braking = coast + q[Q_SERVICE]
-                if to_stop and braking < stop_net:
-                    # a target stop on a descent: the air brake adds what the descent
-                    # takes away, up to the full service (the planning brake alone, net
-                    # of 11.5 per mille, planned a loaded train's stop behind a slow
-                    # leader 14 km long). The regenerative phase and the braking for a
-                    # lower speed stay as they are: what the ATO tracks there, the air
-                    # brake's minute-long build-up could not follow (docs/onboard.md,
-                    # "Planned curve")
+                elif to_stop and braking < stop_net:
+                    # a stop on a descent: the air brake adds what the descent takes away,
+                    # up to the full service (the planning brake alone, net of 11.5 per
+                    # mille, would plan a loaded train's stop behind a slow leader 14 km
+                    # long). A stop planned at the planning brake's own deceleration (the
+                    # consist's at the station: onboard/drive.py station_stop_net) is so
+                    # however steep the descent: at the full service, a loaded train's
+                    # stop on 12 per mille is a curve no air brake's build-up along the
+                    # train follows. The regenerative phase and the braking for a lower
+                    # speed stay as they are: what the ATO tracks there, the air brake's
+                    # minute-long build-up could not follow (docs/onboard.md, "Planned
+                    # curve")
                     braking = min(stop_net, coast + q[Q_SERVICE])
             sq = v * v + 2.0 * dx * braking
             if v < vf and sq > vf * vf and braking > 0.0:

@@ -70,6 +70,26 @@ MIN_STOP_DECEL = 0.02
 AT_REST_MPS = 1e-6
 #: the least speed the driver aims at on a profile before its stop [m/s]
 MIN_GOAL_MPS = 1.0
+#: the most traction [share of the envelope] the driver pulls against the stop's air
+#: brake when it would stop the train short (stretch braking: the brake cannot be eased)
+STOP_STRETCH_EFFORT = 0.3
+#: the distance [m] over which the driver reads the plan's acceleration (its feedforward)
+FEEDFORWARD_DX_M = 10.0
+#: the share of regeneration's force the driver's stop counts on before it deepens the
+#: reduction
+STOP_REGEN_SHARE = 0.5
+#: the time step [s] of the driver's prediction of where its stop application stops
+STOP_PREDICTION_STEP_S = 0.25
+#: the driver predicts its stop once the head is within this many times the distance
+#: the stop's air brake needs at its fill time and built-up deceleration (on a descent
+#: the line speeds the train up while the cylinders fill: the prediction is longer)
+STOP_WATCH_FACTOR = 3.0
+#: the reduction [kPa] the brake cylinders' fill time is measured with (air_fill_time_s)
+FILL_PROBE_KPA = 70.0
+#: the longest the fill is followed for [s]
+FILL_PROBE_S = 300.0
+#: the points along the way to the stop (shares of it) whose line the stop is planned on
+STOP_LINE_SAMPLES = np.array([0.0, 0.25, 0.5, 0.75, 1.0])
 #: most brake releases a run keeps the air state of (for the recharge margins)
 MAX_RELEASES = 256
 
@@ -103,15 +123,21 @@ MODE_KEEP, MODE_EFFORT, MODE_HOLD, MODE_PROFILE = range(4)
     DP_REMOTES_FOLLOW,
     DP_END_AT_REST,
     DP_STOP_REDUCTION_KPA,
-    DP_STOP_DECEL_MPS2,
     DP_STOP_LEAD_S,
     DP_RELEASE_WAIT_S,
     DP_LENGTH_M,
     DP_EFFECTIVE_MASS_KG,
     DP_KPA_PER_MPS2,
     DP_FULL_REDUCTION_KPA,
-) = range(20)
-N_DRIVER = 20
+    DP_STOP_NET_MPS2,
+    DP_AIR_FILL_S,
+    DP_DAVIS_A0,
+    DP_DAVIS_A1,
+    DP_DAVIS_A2,
+    DP_WEIGHT_SHARE,
+    DP_FINAL_BRAKING_M,
+) = range(26)
+N_DRIVER = 26
 
 # the run's metrics, then the loop-carried scalars (a run can stop at a step and go on)
 (
@@ -233,14 +259,16 @@ class DriverCommand:
 @dataclass(frozen=True)
 class ConsistDriver:
     """The driver on the lead locomotive: a script, and how a held speed or a profile is
-    driven.
+    driven (docs/consist-run.md, "`railpilot drive` on the consist").
 
     ``profile_m``, ``profile_mps``: a speed [m/s] by head position [m] that the mode
     ``follow`` tracks. Speed holding is a PI law on the lead's speed error giving the
-    effort fraction (``kp`` per m/s, ``ki`` per m). In ``follow`` the driver reads the
-    profile ahead (LOOK_AHEAD_M, past the distance the air brake builds up in,
-    ``stop_lead_s``): for the deepest deceleration it asks for, regeneration first, and
-    the air brake for the rest as a reduction of that depth (at least
+    effort fraction (``kp`` per m/s, ``ki`` per m); in ``follow``, on top of it, the
+    effort the profile's acceleration takes against the running resistance and the line
+    (:func:`_plan_effort`). In ``follow`` the driver reads the profile ahead
+    (LOOK_AHEAD_M, past the distance the air brake builds up in, ``stop_lead_s``) and
+    applies the air brake for what regeneration at its limit and the line do not give
+    towards a lower speed there, as a reduction of that depth (at least
     ``cycle_reduction_kpa``, at most full service; deepened, never eased); where the
     profile holds a speed that regeneration at its limit cannot, an application of
     ``cycle_reduction_kpa`` once the train, at its present acceleration, would be
@@ -248,12 +276,13 @@ class ConsistDriver:
     train has fallen ``release_below_kmh`` under the profile, never below
     ``min_release_kmh`` (and always at a stand short of the stop), and draws no traction
     while applied nor for ``release_wait_s`` after a release (the brakes release along
-    the train meanwhile). ``stop_m``: where a profile's stop is; the driver makes
-    ``stop_reduction_kpa`` once the head is within ``v stop_lead_s + v^2 / (2 a)`` of it
-    (``a``: ``stop_decel_mps2``, what that reduction gives once built up, with the
-    gradient under the train), and trims with regeneration to the curve ``sqrt(2 a d)``
-    to the stop ``d`` ahead; no other application within APPROACH_FACTOR times that
-    distance. ``end_at_rest``: the run ends when the script is done (or the profile's
+    the train meanwhile). ``stop_m``: where a profile's stop is. The stop's application
+    is ``stop_reduction_kpa``, or with ``stop_net_mps2`` > 0 the one that brakes the train
+    at that deceleration net of the line (:func:`_stop_reduction_kpa`); the driver makes
+    it where its prediction of the stop (:func:`_stop_distance_m`) reaches ``stop_m``, and
+    then trims to the stop point (:func:`_stop_trim`). Within APPROACH_FACTOR times the
+    stop's distance, the profile's braking to the stop is the stop's application's, not
+    a cycle's. ``end_at_rest``: the run ends when the script is done (or the profile's
     stop reached) and the train stands.
     """
 
@@ -268,7 +297,7 @@ class ConsistDriver:
     cycle_reduction_kpa: float = 50.0
     stop_m: float = math.inf
     stop_reduction_kpa: float = 70.0
-    stop_decel_mps2: float = 0.2
+    stop_net_mps2: float = 0.0
     stop_lead_s: float = 18.0
     release_wait_s: float = 150.0
     end_at_rest: bool = True
@@ -428,6 +457,182 @@ def _charged_and_released(air_p: np.ndarray, air_s: np.ndarray, charged_kpa: flo
 
 
 @njit(cache=True)
+def _plan_effort(
+    inp: ConsistInputs, drv: np.ndarray, dyn: Any, head_m: float, v_mps: float, length_m: float
+) -> float:
+    """The effort (a share of the locomotives' envelopes at ``v_mps``, in [-1, 1]) that
+    gives the plan's acceleration at the head's position against the train's running
+    resistance and the line under it: the speed law's feedforward, so that the train
+    keeps to the plan where it accelerates at full traction (from a stand above all,
+    where a speed error alone starts it slowly) and holds its speed on a grade."""
+    v2_here = interp_at(head_m, inp.profile_m, inp.profile_v2)
+    v2_ahead = interp_at(head_m + FEEDFORWARD_DX_M, inp.profile_m, inp.profile_v2)
+    accel = (v2_ahead - v2_here) / (2.0 * FEEDFORWARD_DX_M)
+    line = mean_specific_resistance(
+        dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
+    )
+    kmh = v_mps * KMH_PER_MPS
+    davis = drv[DP_DAVIS_A0] + drv[DP_DAVIS_A1] * kmh + drv[DP_DAVIS_A2] * kmh * kmh
+    resist = (line + davis) * drv[DP_WEIGHT_SHARE] * G_MPS2 / 1000.0
+    force = drv[DP_EFFECTIVE_MASS_KG] * (accel + resist)
+    envelope = 0.0
+    for j in range(inp.loco.shape[0]):
+        loco = inp.loco[j]
+        if force >= 0.0:
+            envelope += traction_force_max(v_mps, loco[1], loco[2], loco[3])
+        else:
+            envelope += regen_force_max(v_mps, loco[4], loco[5], loco[6])
+    if envelope <= 0.0:
+        return 0.0
+    return min(max(force / envelope, -1.0), 1.0)
+
+
+@njit(cache=True)
+def _line_decel_ahead(
+    dyn: Any, drv: np.ndarray, head_m: float, to_go_m: float, length_m: float
+) -> float:
+    """The line's deceleration [m/s^2] (gradients and curves; negative on a descent) on
+    the train's way to its stop ``to_go_m`` [m] ahead: the mean over STOP_LINE_SAMPLES."""
+    total = 0.0
+    for share in STOP_LINE_SAMPLES:
+        total += mean_specific_resistance(
+            dyn.edges_m,
+            dyn.cumulative,
+            dyn.values_n_per_kn,
+            head_m + share * to_go_m,
+            length_m,
+            1.0,
+        )
+    mean_n_per_kn = total / STOP_LINE_SAMPLES.shape[0]
+    return mean_n_per_kn * drv[DP_WEIGHT_SHARE] * G_MPS2 / 1000.0
+
+
+@njit(cache=True)
+def _stop_reduction_kpa(drv: np.ndarray, line_mps2: float) -> float:
+    """The reduction [kPa] the stop is made with: ``stop_reduction_kpa``, or with a
+    ``stop_net_mps2`` the one that slows the train at that deceleration net of the line
+    (on a descent the air adds what the line takes away; on a climb the line's help is
+    not counted on), at least ``cycle_reduction_kpa`` and at most full service."""
+    if drv[DP_STOP_NET_MPS2] <= 0.0:
+        return drv[DP_STOP_REDUCTION_KPA]
+    air_mps2 = drv[DP_STOP_NET_MPS2] + max(-line_mps2, 0.0)
+    wanted = air_mps2 * drv[DP_KPA_PER_MPS2]
+    return min(max(wanted, drv[DP_CYCLE_REDUCTION_KPA]), drv[DP_FULL_REDUCTION_KPA])
+
+
+@njit(cache=True)
+def _stop_distance_m(
+    drv: np.ndarray, v_mps: float, line_mps2: float, air_now_mps2: float, air_built_mps2: float
+) -> float:
+    """Where [m ahead] the train stops from ``v_mps``: the line's deceleration, the
+    train's running resistance and the air brake's, going from ``air_now_mps2`` to
+    ``air_built_mps2`` as the cylinders fill (a first-order approach of the train's fill
+    time: air_fill_time_s); inf where it would not stop."""
+    fill_s = drv[DP_AIR_FILL_S]
+    per_n_per_kn = drv[DP_WEIGHT_SHARE] * G_MPS2 / 1000.0
+    x = 0.0
+    v = v_mps
+    t = 0.0
+    h = STOP_PREDICTION_STEP_S
+    while v > 0.0:
+        kmh = v * KMH_PER_MPS
+        davis = drv[DP_DAVIS_A0] + drv[DP_DAVIS_A1] * kmh + drv[DP_DAVIS_A2] * kmh * kmh
+        # the air brake at the middle of the step (second order in the step)
+        fill = math.exp(-(t + 0.5 * h) / fill_s)
+        a = line_mps2 + davis * per_n_per_kn + air_built_mps2
+        a += (air_now_mps2 - air_built_mps2) * fill
+        if a <= 0.0 and line_mps2 + air_built_mps2 <= 0.0 and t > 5.0 * fill_s:
+            return math.inf
+        step = h
+        if a > 0.0 and a * h > v:
+            step = v / a
+        x += v * step - 0.5 * a * step * step
+        v -= a * step
+        t += step
+    return x
+
+
+@njit(cache=True)
+def _air_decel_mps2(inp: ConsistInputs, bc: np.ndarray, mass_kg: float) -> float:
+    """The deceleration [m/s^2] the brake cylinders give now."""
+    force = 0.0
+    for i in range(bc.shape[0]):
+        force += inp.brake_force_n[i] * bc[i] / inp.full_service_bc_kpa
+    return force / mass_kg
+
+
+@njit(cache=True)
+def _air_built_mps2(
+    inp: ConsistInputs, air_p: np.ndarray, air_s: np.ndarray, mass_kg: float, reduction: float
+) -> float:
+    """The deceleration [m/s^2] the brake cylinders give once settled at ``reduction``
+    [kPa]: each distributor's auxiliary reservoir, as charged as it is now, gives its
+    cylinder air until it laps at the pipe or equalizes with the cylinder (the mass
+    balance of freight_air.service_bc_kpa); a reservoir not recharged since the last
+    application gives less."""
+    rho = air_p[freight_air.P_RHO]
+    pipe = inp.charged_kpa - reduction
+    ar = freight_air.ar_kpa(air_p, air_s)
+    bc = freight_air.bc_kpa(air_p, air_s)
+    force = 0.0
+    for i in range(bc.shape[0]):
+        a0 = ar[i]
+        c0 = bc[i]
+        a_eq = a0 - max(a0 - c0, 0.0) / (1.0 + rho)
+        a_end = min(max(pipe, a_eq), a0)
+        force += inp.brake_force_n[i] * (c0 + rho * (a0 - a_end)) / inp.full_service_bc_kpa
+    return force / mass_kg
+
+
+@njit(cache=True)
+def _stop_trim(
+    inp: ConsistInputs,
+    drv: np.ndarray,
+    air_p: np.ndarray,
+    air_s: np.ndarray,
+    v_lead: float,
+    to_go: float,
+    line_mps2: float,
+    reduction: float,
+) -> tuple[float, float]:
+    """The driver's effort and reduction [kPa] on the stop's application: it predicts
+    where the application stops the train (what the cylinders give now, going to what the
+    reduction gives once they have filled) and makes up the difference to the stop
+    ``to_go`` [m] ahead with regeneration, then by deepening the reduction (deepened,
+    never eased: a direct-release brake releases only in full); where the application
+    would stop the train short, with a bounded traction against it (STOP_STRETCH_EFFORT:
+    stretch braking)."""
+    mass = drv[DP_EFFECTIVE_MASS_KG]
+    v = max(v_lead, 0.0)
+    if to_go <= 0.0 or v <= 0.0:
+        return -1.0, reduction
+    air_now = _air_decel_mps2(inp, freight_air.bc_kpa(air_p, air_s), mass)
+    air_built = _air_built_mps2(inp, air_p, air_s, mass, reduction)
+    predicted = _stop_distance_m(drv, v, line_mps2, air_now, max(air_built, air_now))
+    # the deceleration the stop needs over the one the application gives
+    short_mps2 = v * v / (2.0 * to_go) - v * v / (2.0 * predicted)
+    regen_n = 0.0
+    traction_n = 0.0
+    for j in range(inp.loco.shape[0]):
+        loco = inp.loco[j]
+        regen_n += regen_force_max(v, loco[4], loco[5], loco[6])
+        traction_n += traction_force_max(v, loco[1], loco[2], loco[3])
+    if short_mps2 >= 0.0:
+        effort = -min(short_mps2 * mass / regen_n, 1.0) if regen_n > 0.0 else 0.0
+        # the air brake deepened for what half of regeneration's reach does not give:
+        # regeneration, fast, keeps the other half to trim with as the cylinders fill
+        beyond_mps2 = short_mps2 - STOP_REGEN_SHARE * regen_n / mass
+        if beyond_mps2 > 0.0:
+            wanted = reduction + beyond_mps2 * drv[DP_KPA_PER_MPS2]
+            reduction = min(wanted, drv[DP_FULL_REDUCTION_KPA])
+        return effort, reduction
+    effort = 0.0
+    if traction_n > 0.0:
+        effort = min(-short_mps2 * mass / traction_n, STOP_STRETCH_EFFORT)
+    return effort, reduction
+
+
+@njit(cache=True)
 def consist_kernel(
     inp: ConsistInputs,
     dyn: Any,
@@ -536,6 +741,8 @@ def consist_kernel(
                 goal = max(_profile_speed(head_m, inp.profile_m, inp.profile_v2), MIN_GOAL_MPS)
             err = goal - v_lead
             raw = drv[DP_KP] * err + drv[DP_KI] * integral
+            if mode == MODE_PROFILE:
+                raw += _plan_effort(inp, drv, dyn, head_m, v_lead, length_m)
             if -1.0 < raw < 1.0 or raw * err < 0.0:
                 integral += err * dt  # conditional integration: no wind-up at a limit
             effort = min(max(raw, -1.0), 1.0)
@@ -544,28 +751,44 @@ def consist_kernel(
                 # to stop from this speed (its build-up, then the deceleration the stop's
                 # reduction gives); regeneration then trims to the stop curve
                 to_go = drv[DP_STOP_M] - head_m
-                # the stop's air brake, with the line's gradients and curves under the
-                # train helping or against it (a descent lengthens the stop)
                 w_line = mean_specific_resistance(
                     dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
                 )
-                decel = max(drv[DP_STOP_DECEL_MPS2] + w_line * G_MPS2 / 1000.0, MIN_STOP_DECEL)
-                needed = v_lead * drv[DP_STOP_LEAD_S] + v_lead * v_lead / (2.0 * decel)
-                if to_go <= needed and not stopping:
+                # the stop's air brake, with the line's gradients and curves on the way to
+                # the stop helping or against it (a descent lengthens the stop)
+                line_stop = _line_decel_ahead(dyn, drv, head_m, max(to_go, 0.0), length_m)
+                stop_kpa = _stop_reduction_kpa(drv, line_stop)
+                air_stop = stop_kpa / drv[DP_KPA_PER_MPS2]
+                decel = max(air_stop + line_stop, MIN_STOP_DECEL)
+                needed = v_lead * drv[DP_AIR_FILL_S] + v_lead * v_lead / (2.0 * decel)
+                # where the application, building up along the train, stops it
+                if (
+                    to_go <= STOP_WATCH_FACTOR * needed
+                    and not stopping
+                    and to_go
+                    <= _stop_distance_m(
+                        drv,
+                        v_lead,
+                        line_stop,
+                        _air_decel_mps2(inp, bc, drv[DP_EFFECTIVE_MASS_KG]),
+                        _air_built_mps2(
+                            inp, air_p, air_s, drv[DP_EFFECTIVE_MASS_KG], max(reduction, stop_kpa)
+                        ),
+                    )
+                ):
                     stopping = True
                     stop_since = t
+                    reduction = max(reduction, stop_kpa)
                 if stopping:
-                    reduction = max(reduction, drv[DP_STOP_REDUCTION_KPA])
-                    curve = math.sqrt(2.0 * decel * max(to_go, 0.0))
-                    effort = min(drv[DP_KP] * (curve - v_lead), 0.0)
-                    # a stop the reduction does not make (reservoirs not recharged since
-                    # the last cycle, a descent steeper under the train than ahead): once
-                    # it has built up, the driver deepens it to the deceleration the stop
-                    # now needs, up to full service (deepened, never eased)
-                    if t - stop_since >= drv[DP_STOP_LEAD_S] and v_lead > curve:
-                        short_mps2 = v_lead * v_lead / (2.0 * max(to_go, 1.0)) - decel
-                        wanted = drv[DP_STOP_REDUCTION_KPA] + short_mps2 * drv[DP_KPA_PER_MPS2]
-                        reduction = max(reduction, min(wanted, drv[DP_FULL_REDUCTION_KPA]))
+                    law = effort
+                    effort, reduction = _stop_trim(
+                        inp, drv, air_p, air_s, v_lead, to_go, line_stop, reduction
+                    )
+                    if head_m < drv[DP_FINAL_BRAKING_M]:
+                        # a lower planned speed before the plan's own braking to the stop
+                        # (a lower limit short of the station): the speed law keeps the
+                        # train to it whatever the stop's application would allow
+                        effort = min(effort, law)
                 else:
                     # the air the plan ahead asks for: the deepest deceleration to any
                     # of its speeds ahead (the air's build-up run first), less what the
@@ -575,14 +798,20 @@ def consist_kernel(
                     lead = drv[DP_STOP_LEAD_S]
                     kinematic = 0.0
                     approach_m = drv[DP_STOP_M] - APPROACH_FACTOR * needed
+                    # from the plan's speed here: a train a little over it is the speed
+                    # law's to bring back (or a braking cycle's, below), not a reason
+                    # for an application towards a speed just ahead
+                    v_plan = min(v_lead, goal)
                     for look in LOOK_AHEAD_M:
                         ahead_m = look - v_lead * lead
-                        # the plan's own stop is the stop's application's to brake for
-                        if ahead_m > 1.0 and head_m + look < approach_m:
+                        # the plan's own stop is the stop's application's to brake for;
+                        # a speed so near that the air would spend most of the way to it
+                        # building up is the speed law's (regeneration) to reach
+                        if ahead_m >= 0.5 * look and head_m + look < approach_m:
                             g_ahead = _profile_speed(head_m + look, inp.profile_m, inp.profile_v2)
-                            if v_lead > g_ahead:
+                            if v_plan > g_ahead:
                                 kinematic = max(
-                                    kinematic, (v_lead**2 - g_ahead**2) / (2.0 * ahead_m)
+                                    kinematic, (v_plan**2 - g_ahead**2) / (2.0 * ahead_m)
                                 )
                     regen_mps2 = 0.0
                     for j in range(n_loco):
@@ -590,27 +819,32 @@ def consist_kernel(
                         regen_mps2 += regen_force_max(v_lead, loco[4], loco[5], loco[6])
                     regen_mps2 /= drv[DP_EFFECTIVE_MASS_KG]
                     line_mps2 = w_line * G_MPS2 / 1000.0
-                    if kinematic > 0.0 and regen_mps2 > 0.0:
-                        # regeneration first: as much of the deceleration as it gives
-                        share = min(max(kinematic - line_mps2, 0.0) / regen_mps2, 1.0)
-                        effort = min(effort, -share)
+                    # regeneration, which acts within its lag, follows the plan's own
+                    # braking curves (the speed law above); the air brake, which takes a
+                    # build-up along the train, is applied ahead of them for what
+                    # regeneration at its limit and the line do not give
                     air_mps2 = kinematic - line_mps2 - regen_mps2
                     wanted = 0.0
                     # worth an application: at least half what the least one gives
                     least = 0.5 * drv[DP_CYCLE_REDUCTION_KPA] / drv[DP_KPA_PER_MPS2]
-                    if kinematic > 0.0 and air_mps2 > least:
+                    # on the approach, the plan's braking to the stop is the stop's
+                    # application's (its prediction times it), not a cycle's
+                    approach = to_go <= APPROACH_FACTOR * needed
+                    if kinematic > 0.0 and air_mps2 > least and not approach:
                         wanted = min(
                             max(air_mps2 * drv[DP_KPA_PER_MPS2], drv[DP_CYCLE_REDUCTION_KPA]),
                             drv[DP_FULL_REDUCTION_KPA],
                         )
                     # braking cycles where the plan holds its speed: apply when the train,
                     # at its present acceleration, will be over it once the air has built
-                    # up with regeneration already at its limit
+                    # up with regeneration already at its limit (on the approach too, for
+                    # a lower limit short of the station)
                     speeding = v_lead + max(accel, 0.0) * lead
-                    if effort <= -1.0 and speeding > goal + drv[DP_APPLY_ABOVE_MPS]:
+                    # on the approach, once the plan brakes to the stop, its application
+                    # is the stop's (a cycle's here cannot be eased before it)
+                    to_stop = approach and head_m >= drv[DP_FINAL_BRAKING_M]
+                    if effort <= -1.0 and speeding > goal + drv[DP_APPLY_ABOVE_MPS] and not to_stop:
                         wanted = max(wanted, drv[DP_CYCLE_REDUCTION_KPA])
-                    if to_go <= APPROACH_FACTOR * needed:
-                        wanted = 0.0  # the approach: the stop's own application comes
                     if v_lead <= 0.0 and has_moved:
                         # at a stand short of the stop: release, go on once released
                         reduction = 0.0
@@ -623,8 +857,9 @@ def consist_kernel(
                         and v_lead > drv[DP_MIN_RELEASE_MPS]
                     ):
                         reduction = 0.0
-                if reduction > 0.0 or t < released_at + drv[DP_RELEASE_WAIT_S]:
-                    # no traction against the air brake, nor while it releases
+                if not stopping and (reduction > 0.0 or t < released_at + drv[DP_RELEASE_WAIT_S]):
+                    # no traction against the air brake, nor while it releases (the stop's
+                    # stretch braking apart: _stop_trim)
                     effort = min(effort, 0.0)
         if emergency:
             effort = 0.0
@@ -786,6 +1021,36 @@ def consist_kernel(
     metrics[C_ACCEL] = accel
 
 
+def final_braking_m(profile_m: Any, profile_mps: Any) -> float:
+    """Where [m] a profile's last braking begins: going back from its end, the last
+    point from which its speed only falls (-inf for an empty profile)."""
+    speeds = np.asarray(profile_mps, dtype=float)
+    if speeds.shape[0] == 0:
+        return -math.inf
+    j = speeds.shape[0] - 1
+    while j > 0 and speeds[j - 1] > speeds[j]:
+        j -= 1
+    return float(np.asarray(profile_m, dtype=float)[j])
+
+
+def air_fill_time_s(air_p: np.ndarray, air_s: np.ndarray, n_valves: int, dt: float) -> float:
+    """How long [s] the brake cylinders of this train take to fill to 63 % of what a
+    FILL_PROBE_KPA reduction gives them (mean over the train), from charged and released:
+    the time constant the driver's stop is predicted with. Run on a copy of the air brake
+    (``air_p``, ``air_s``: the stepper's, charged)."""
+    state = air_s.copy()
+    charged = float(np.max(freight_air.bp_kpa(air_p, state)))
+    er = np.full(n_valves, charged - FILL_PROBE_KPA)
+    emergency = np.zeros(n_valves)
+    steps = math.ceil(FILL_PROBE_S / dt)
+    mean_bc = np.empty(steps)
+    for k in range(steps):
+        freight_air.freight_air_step(air_p, state, er, emergency, dt)
+        mean_bc[k] = float(np.mean(freight_air.bc_kpa(air_p, state)))
+    filled = np.nonzero(mean_bc >= (1.0 - math.exp(-1.0)) * mean_bc[-1])[0]
+    return float((filled[0] + 1) * dt)
+
+
 def _locomotive_rows(consist: Consist) -> np.ndarray:
     rows = []
     for i in consist.locomotive_indices():
@@ -887,8 +1152,15 @@ class ConsistStepper:
         drv[DP_REMOTES_FOLLOW] = 1.0 if settings.distributed_power else 0.0
         drv[DP_END_AT_REST] = 1.0 if driver.end_at_rest else 0.0
         drv[DP_STOP_REDUCTION_KPA] = driver.stop_reduction_kpa
-        drv[DP_STOP_DECEL_MPS2] = driver.stop_decel_mps2
         drv[DP_STOP_LEAD_S] = driver.stop_lead_s
+        drv[DP_STOP_NET_MPS2] = driver.stop_net_mps2
+        drv[DP_FINAL_BRAKING_M] = final_braking_m(driver.profile_m, driver.profile_mps)
+        drv[DP_AIR_FILL_S] = air_fill_time_s(self.air_p, self.air_s, self.n_valves, dt)
+        # the train's running resistance (mass-weighted Davis coefficients) and its weight
+        # over its effective mass, for the driver's prediction of its stop
+        masses = self.dyn.mass_kg
+        drv[DP_DAVIS_A0 : DP_DAVIS_A2 + 1] = masses @ self.dyn.davis / masses.sum()
+        drv[DP_WEIGHT_SHARE] = float(masses.sum()) / float(consist.effective_masses_kg().sum())
         drv[DP_RELEASE_WAIT_S] = driver.release_wait_s
         drv[DP_LENGTH_M] = consist.length_m
         effective_kg = float(consist.effective_masses_kg().sum())
@@ -984,6 +1256,7 @@ class ConsistStepper:
         """Follow a new speed profile [m/s by m] to a stop at ``stop_m`` [m] from now on."""
         driver = self.inputs.driver.copy()
         driver[DP_STOP_M] = stop_m
+        driver[DP_FINAL_BRAKING_M] = final_braking_m(profile_m, profile_mps)
         self.inputs = self.inputs._replace(
             driver=driver,
             profile_m=np.asarray(profile_m, dtype=float),
