@@ -55,6 +55,14 @@ class ConfigError(RailpilotError, ValueError):
             message = f"{field} = {shown(value)} is not allowed: expected {allowed}"
         super().__init__(_shorter_numbers(message))
 
+    def in_file(self, name: str, kind: type[ConfigError] | None = None) -> ConfigError:
+        """This error named with the file it is in (``name: field = value is not
+        allowed...``), as a ``kind`` (default: this error's own class); its message is
+        kept as it was made (a line file's error keeps the name of the line file)."""
+        named = (kind or type(self))(f"{name}: {self.field}", self.value, self.allowed)
+        named.args = (f"{name}: {self}",)
+        return named
+
 
 class RunFailed(RailpilotError):
     """A run that cannot finish (its trains stand still for good): the command line says

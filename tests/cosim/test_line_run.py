@@ -243,9 +243,9 @@ def test_bad_scenarios_are_refused_naming_the_field(change, field):
     ("event", "message"),
     [
         # the ground's own message, once (it was wrapped in a second "is not allowed")
-        ({"limit_kmh": -5}, "events[0].limit_kmh: -5 is not allowed: expected"),
+        ({"limit_kmh": -5}, "events[0].limit_kmh = -5 is not allowed: expected"),
         # a missing field is said missing (the value shown was the op's, 'tsr_set')
-        ({"reason": None}, "events[0].reason: required: why the restriction is set"),
+        ({"reason": None}, "events[0].reason is missing: expected why the restriction is set"),
         # every op a scenario may give, its own two included
         ({"op": None}, "events[0].op is missing: expected one of tsr_set,"),
         ({"op": "launch"}, "train_failure, ground_restart"),

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -145,7 +146,10 @@ def run(args: argparse.Namespace) -> int:
 
         timetable = load_timetable(args.timetable, line)
         driven = (args.from_station, args.to_station)
-        check_timetable(timetable.sections, line, preset.name, args.margin, driven)
+        try:
+            check_timetable(timetable.sections, line, preset.name, args.margin, driven)
+        except ConfigError as error:
+            raise error.in_file(os.path.basename(args.timetable)) from None
         sections = timetable.between(*driven)
         return _run_timetable(args, line, preset, sections, tsrs, targets)
     outcome = drive(

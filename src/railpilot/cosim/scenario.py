@@ -277,8 +277,14 @@ def _events(
             except OperationError as error:
                 name, why = next(iter(error.errors.items()))
                 refused = ScenarioError(f"{where}{name}", fields.get(name), why)
-                # the ground's own message says the value and what is allowed: not again
-                refused.args = (f"{where}{name}: {why}",)
+                # the ground's own message says the value and what is allowed (or that it
+                # is required): said once, in the words of every other file error
+                required = "required: "
+                if why.startswith(required):
+                    sentence = f"{where}{name} is missing: expected {why[len(required) :]}"
+                else:
+                    sentence = f"{where}{name} = {why}"
+                refused.args = (sentence,)
                 raise refused from None
         events.append(ScenarioEvent(at_s, action, str(op), fields))
     return tuple(sorted(events, key=lambda e: e.at_s))
@@ -401,11 +407,7 @@ def load_line_scenario(path: str | os.PathLike[str]) -> LineScenario:
     try:
         return line_scenario_from_mapping(data, Path(path).parent)
     except ConfigError as error:
-        named = ScenarioError(f"{name}: {error.field}", error.value, error.allowed)
-        # the error's own message, named with the file (a line file's error keeps the name
-        # of the line file it is in)
-        named.args = (f"{name}: {error}",)
-        raise named from None
+        raise error.in_file(name, ScenarioError) from None
 
 
 def check_timetable(
