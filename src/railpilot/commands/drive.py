@@ -177,6 +177,9 @@ def run(args: argparse.Namespace) -> int:
             f"{summary['energy_regenerated_kwh']:.0f} kWh, stop error "
             f"{summary['stop_error_m']:.2f} m"
         )
+        # the advice a driver follows, as the drive ahead on the model made it
+        for instruction in summary["advice"]:
+            log(f"  {instruction['time_s']:6.0f} s  {instruction['text']}")
     return 0
 
 

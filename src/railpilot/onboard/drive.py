@@ -31,6 +31,7 @@ from railpilot.errors import ConfigError
 from railpilot.line.model import DOWN, UP, RailLine
 from railpilot.link.events import AppliedTsr
 from railpilot.link.messages import TargetPoint, TargetReason, TravelDirection, TsrSet
+from railpilot.onboard.advice_list import advice_along
 from railpilot.onboard.braking import BrakingTrain, TsrCheck, tsr_check
 from railpilot.onboard.consist_drive import CONSIST_METRICS, ConsistDrive
 from railpilot.onboard.mrsp import (
@@ -314,6 +315,7 @@ class DriveOutcome:
                 }
                 for p in self.replans
             ],
+            "advice": [i.as_dict() for i in advice_along(r, self.km_post)],
         }
 
 
