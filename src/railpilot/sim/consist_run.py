@@ -747,9 +747,8 @@ def consist_kernel(
                 integral += err * dt  # conditional integration: no wind-up at a limit
             effort = min(max(raw, -1.0), 1.0)
             if mode == MODE_PROFILE and not emergency:
-                # the stop: the air brake once the head is within what the train needs
-                # to stop from this speed (its build-up, then the deceleration the stop's
-                # reduction gives); regeneration then trims to the stop curve
+                # the stop: its application where the driver's prediction of where it
+                # stops the train reaches the stop point; then the trim to the point
                 to_go = drv[DP_STOP_M] - head_m
                 w_line = mean_specific_resistance(
                     dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
