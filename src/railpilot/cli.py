@@ -30,6 +30,7 @@ COMMAND_MODULES: tuple[str, ...] = (
     "railpilot.commands.drive",
     "railpilot.commands.line",
     "railpilot.commands.schema",
+    "railpilot.commands.validate",
 )
 
 
