@@ -170,7 +170,7 @@ BROKEN = [
         "unloading_ratio",
     ),
     ("consist-library", "library.toml", r"^travel_mm = .*$", "", "travel_mm"),
-    ("keys", None, r"^id = 7$", "id = 0", "train[0]"),  # its message says train_id
+    ("keys", None, r"^id = 7$", "id = 0", "train[0].id"),
     ("keys", None, r"^\[train\.keys\]$", "", "keys"),
 ]
 

@@ -65,6 +65,27 @@ def test_user_csv_table(tmp_path):
     assert metrics.rise_time_s > 0
 
 
+def test_a_scenario_file_s_table_is_read_beside_it(tmp_path, monkeypatch):
+    """load_scenario reads ``table.csv`` from the scenario's folder, as simulate does,
+    whatever the working directory."""
+    from railpilot.eddy.table import TorqueTable
+    from railpilot.scenario.loader import load_scenario
+
+    folder = tmp_path / "case"
+    folder.mkdir()
+    (folder / "fe.csv").write_text(
+        TorqueTable.from_model(current_step_a=10, speed_step_kmh=5).to_csv_text()
+    )
+    (folder / "eddy.toml").write_text(
+        'kind = "eddy-brake"\ntorque_demand_nm = 3500\ninitial_speed_kmh = 100\n'
+        '[table]\ncsv = "fe.csv"\n'
+    )
+    monkeypatch.chdir(tmp_path)
+    scenario = load_scenario(folder / "eddy.toml")
+    assert isinstance(scenario, EddyScenario)
+    assert scenario.table_csv == folder / "fe.csv"
+
+
 @pytest.mark.parametrize("dt_s", [1e-12, 5e-324])
 def test_simulate_eddy_refuses_more_steps_than_it_may_take(dt_s):
     # the scenario refuses such a step at load (tests/scenario/test_value_bounds.py); the

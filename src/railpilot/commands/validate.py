@@ -192,21 +192,14 @@ def _consist(path: Path, args: argparse.Namespace) -> None:
 
 
 def _consist_library(path: Path, args: argparse.Namespace) -> None:
-    # the shipped library's reader (consist_file._library), on this file
-    from railpilot.scenario import consist_file
-    from railpilot.schema.consist import ConsistLibraryTable
+    # the shipped library's reader, on this file
+    from railpilot.scenario.consist_file import ConsistError, parse_library
     from railpilot.schema.reading import read_document
-    from railpilot.schema.validate import check
 
     def error(field: str, value: Any, allowed: str) -> ConfigError:
-        return consist_file.ConsistError(field, value, allowed, source=str(path))
+        return ConsistError(field, value, allowed, source=str(path))
 
-    data = read_document(path, "FILE", "consist library TOML file", error)
-    table = check(ConsistLibraryTable, data, error)
-    try:
-        consist_file._types_and_gears(table, {}, {})
-    except consist_file.ConsistError as exc:
-        raise error(exc.field, exc.value, exc.allowed) from exc
+    parse_library(read_document(path, "FILE", "consist library TOML file", error), str(path))
 
 
 def _line_run(path: Path, args: argparse.Namespace) -> None:

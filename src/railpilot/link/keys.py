@@ -120,8 +120,10 @@ def parse_key_table(document: Mapping[str, Any], source: str = "<key table>") ->
             try:
                 store.add_key(entry.id, key_id, key)
             except LinkConfigError as exc:
+                # the key store's own name for it, said as the file writes it
+                field = "id" if exc.field == "train_id" else exc.field
                 raise KeyFileError(
-                    f"{where}: {exc.field} = {shown(exc.value)}, expected {exc.allowed}"
+                    f"{where}.{field} = {shown(exc.value)} is not allowed: expected {exc.allowed}"
                 ) from None
         active = entry.active_key if entry.given("active_key") else min(map(int, entry.keys))
         try:

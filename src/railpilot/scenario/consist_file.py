@@ -297,12 +297,11 @@ def _types_and_gears(
     return types, gears
 
 
-@functools.cache
-def _library() -> tuple[Mapping[str, _VehicleType], Mapping[str, DraftGear]]:
-    """The built-in types and draft gears, parsed once a process (a shipped file)."""
-    resource = resources.files("railpilot.vehicle") / "data" / "consists" / LIBRARY_FILE
-    source = "consist library"
-    data = _parse_toml(resource.read_text(encoding="utf-8"), source)
+def parse_library(
+    data: Any, source: str
+) -> tuple[Mapping[str, _VehicleType], Mapping[str, DraftGear]]:
+    """A consist library's vehicle types and draft gears from its parsed file ``data``;
+    errors name ``source`` (the file) and the entry."""
 
     def error(field: str, value: Any, allowed: str) -> ConsistError:
         return ConsistError(field, value, allowed, source=source)
@@ -312,6 +311,14 @@ def _library() -> tuple[Mapping[str, _VehicleType], Mapping[str, DraftGear]]:
         return _types_and_gears(table, {}, {})
     except ConsistError as exc:
         raise ConsistError(exc.field, exc.value, exc.allowed, source=source) from exc
+
+
+@functools.cache
+def _library() -> tuple[Mapping[str, _VehicleType], Mapping[str, DraftGear]]:
+    """The built-in types and draft gears, parsed once a process (a shipped file)."""
+    resource = resources.files("railpilot.vehicle") / "data" / "consists" / LIBRARY_FILE
+    source = "consist library"
+    return parse_library(_parse_toml(resource.read_text(encoding="utf-8"), source), source)
 
 
 def library_types() -> tuple[str, ...]:

@@ -494,10 +494,11 @@ def read_toml(path: Path) -> dict[str, Any]:
 def load_scenario(path: Path | str) -> Scenario | EddyScenario:
     """Read and validate a scenario file of either kind: ``kind = "ep-braking"`` (the
     default) gives a :class:`Scenario`, ``kind = "eddy-brake"`` an
-    :class:`~railpilot.eddy.scenario.EddyScenario` (paper 003)."""
+    :class:`~railpilot.eddy.scenario.EddyScenario` (paper 003), its files named relative
+    to the scenario's folder (as ``railpilot simulate`` reads it)."""
     data = read_toml(Path(path))
     if data.get("kind") == "eddy-brake":
-        return EddyScenario.from_mapping(data)
+        return EddyScenario.from_mapping(data, base_dir=Path(path).parent)
     return scenario_from_mapping(data)
 
 
