@@ -25,7 +25,7 @@ from railpilot.errors import ConfigError
 from railpilot.schema.cross_checks import LineStations, station_of
 from railpilot.schema.reading import parse_text, read_document
 from railpilot.schema.timetable import TimetableFile
-from railpilot.schema.validate import check, dotted
+from railpilot.schema.validate import check
 
 
 @dataclass(frozen=True)
@@ -64,7 +64,7 @@ def parse_timetable(
     checked to be the line's before the sections' chaining: a station the line lacks is
     named as such, not as the next section's break in the chain."""
 
-    top = check(TimetableFile, data, ConfigError, name=lambda loc, _: dotted(loc))
+    top = check(TimetableFile, data, ConfigError)
     sections: list[TimetableSection] = []
     for i, entry in enumerate(top.sections):
         where = f"sections[{i}]"

@@ -458,19 +458,17 @@ def _charged_and_released(air_p: np.ndarray, air_s: np.ndarray, charged_kpa: flo
 
 @njit(cache=True)
 def _plan_effort(
-    inp: ConsistInputs, drv: np.ndarray, dyn: Any, head_m: float, v_mps: float, length_m: float
+    inp: ConsistInputs, drv: np.ndarray, head_m: float, v_mps: float, line: float
 ) -> float:
     """The effort (a share of the locomotives' envelopes at ``v_mps``, in [-1, 1]) that
     gives the plan's acceleration at the head's position against the train's running
-    resistance and the line under it: the speed law's feedforward, so that the train
+    resistance and the line under it (``line``: its gradient and curve resistance
+    [N/kN]): the speed law's feedforward, so that the train
     keeps to the plan where it accelerates at full traction (from a stand above all,
     where a speed error alone starts it slowly) and holds its speed on a grade."""
     v2_here = interp_at(head_m, inp.profile_m, inp.profile_v2)
     v2_ahead = interp_at(head_m + FEEDFORWARD_DX_M, inp.profile_m, inp.profile_v2)
     accel = (v2_ahead - v2_here) / (2.0 * FEEDFORWARD_DX_M)
-    line = mean_specific_resistance(
-        dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
-    )
     kmh = v_mps * KMH_PER_MPS
     davis = drv[DP_DAVIS_A0] + drv[DP_DAVIS_A1] * kmh + drv[DP_DAVIS_A2] * kmh * kmh
     resist = (line + davis) * drv[DP_WEIGHT_SHARE] * G_MPS2 / 1000.0
@@ -741,8 +739,13 @@ def consist_kernel(
                 goal = max(_profile_speed(head_m, inp.profile_m, inp.profile_v2), MIN_GOAL_MPS)
             err = goal - v_lead
             raw = drv[DP_KP] * err + drv[DP_KI] * integral
+            w_line = 0.0
             if mode == MODE_PROFILE:
-                raw += _plan_effort(inp, drv, dyn, head_m, v_lead, length_m)
+                # the line under the train: the feedforward's, the stop's and the cycles'
+                w_line = mean_specific_resistance(
+                    dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
+                )
+                raw += _plan_effort(inp, drv, head_m, v_lead, w_line)
             if -1.0 < raw < 1.0 or raw * err < 0.0:
                 integral += err * dt  # conditional integration: no wind-up at a limit
             effort = min(max(raw, -1.0), 1.0)
@@ -750,9 +753,6 @@ def consist_kernel(
                 # the stop: its application where the driver's prediction of where it
                 # stops the train reaches the stop point; then the trim to the point
                 to_go = drv[DP_STOP_M] - head_m
-                w_line = mean_specific_resistance(
-                    dyn.edges_m, dyn.cumulative, dyn.values_n_per_kn, head_m, length_m, 1.0
-                )
                 # the stop's air brake, with the line's gradients and curves on the way to
                 # the stop helping or against it (a descent lengthens the stop)
                 line_stop = _line_decel_ahead(dyn, drv, head_m, max(to_go, 0.0), length_m)
